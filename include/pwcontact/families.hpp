@@ -1,0 +1,34 @@
+// Standard families of pairs: the same inputs for the tests, the benchmark and
+// the demo, reproducible from a seed on every platform.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "pwcontact/batch.hpp"
+
+namespace pwcontact {
+
+// Random pairs: independent uniformly random orientations, each semi-axis
+// uniform in [min_semi_axis, max_semi_axis] (or log-uniform), centre
+// distance uniform in [0, max_distance] along a uniformly random direction.
+struct RandomFamily {
+  double min_semi_axis = 0.5;
+  double max_semi_axis = 2.0;
+  double max_distance = 6.0;
+  bool log_uniform_axes = false;
+};
+
+PairBatch<double> random_pairs(std::size_t n, std::uint64_t seed, const RandomFamily& family = {});
+
+// The peer library's reference family: the 108 spheroids with radii a, c in
+// {0.01999, 1.999, 9.999} and axis along one of the 12 icosahedron vertices,
+// all 108 x 108 ordered pairs, at r12 = d n for the 12 vertex directions n and
+// d in {0.15, 1.1, 11.0}: 419,904 pairs, aspect ratios up to 500.
+inline constexpr std::size_t pw85_family_size = 108 * 108 * 12 * 3;
+PairBatch<double> pw85_family();
+
+// The same pairs rounded to float.
+PairBatch<float> to_float(const PairBatch<double>& pairs);
+
+}  // namespace pwcontact

@@ -1,0 +1,9 @@
+// pwcontact: the Perram-Wertheim contact function of two ellipsoids, for one
+// pair (reference path) and for very many pairs at once (batch path).
+#pragma once
+
+#include "pwcontact/batch.hpp"
+#include "pwcontact/ellipsoid.hpp"
+#include "pwcontact/families.hpp"
+#include "pwcontact/reference.hpp"
+#include "pwcontact/status.hpp"

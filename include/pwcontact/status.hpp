@@ -1,0 +1,35 @@
+// Every pair gets a status: the answer is either valid (and says how it was
+// obtained) or it is NaN and says why. Nothing is ever reported as "apart"
+// because a solve failed.
+#pragma once
+
+#include <cstdint>
+
+namespace pwcontact {
+
+enum class Status : std::uint8_t {
+  // Valid answers.
+  ok = 0,             // converged within the batch kernel's fixed iterations
+  ok_fallback = 1,    // the batch lane missed its convergence check and was
+                      // recomputed by the scalar reference path
+  // Invalid answers: mu2 and lambda are NaN.
+  non_finite_input = 2,          // NaN or infinity in r12, q1 or q2
+  q1_not_positive_definite = 3,  // Q1 zero, negative, indefinite or singular
+  q2_not_positive_definite = 4,  // same for Q2
+  not_converged = 5,             // even the reference path failed to converge
+};
+
+// Number of distinct status codes; codes are 0 .. status_count - 1.
+inline constexpr int status_count = 6;
+
+constexpr bool is_valid(Status s) noexcept {
+  return s == Status::ok || s == Status::ok_fallback;
+}
+
+// Short stable name ("ok", "non_finite_input", ...), as printed by the CLI.
+const char* status_name(Status s) noexcept;
+
+// One-line human description, as listed by `pwcontact --help`.
+const char* status_description(Status s) noexcept;
+
+}  // namespace pwcontact

@@ -1,0 +1,56 @@
+#include "pwcontact/ellipsoid.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <stdexcept>
+
+namespace pwcontact {
+namespace {
+
+QuadraticForm pack(const Eigen::Matrix3d& q) {
+  return {q(0, 0), q(0, 1), q(0, 2), q(1, 1), q(1, 2), q(2, 2)};
+}
+
+// Q = R diag(a^2) R^T (eq. 2: the columns of R are the principal directions).
+QuadraticForm from_rotation(const std::array<double, 3>& semi_axes, const Eigen::Matrix3d& r) {
+  const Eigen::Vector3d a2(semi_axes[0] * semi_axes[0], semi_axes[1] * semi_axes[1],
+                           semi_axes[2] * semi_axes[2]);
+  return pack(r * a2.asDiagonal() * r.transpose());
+}
+
+}  // namespace
+
+QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
+                             const std::array<double, 9>& rotation) {
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> r(rotation.data());
+  const double defect = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!(defect <= 1e-9))
+    throw std::invalid_argument("quadratic_form: rotation matrix is not orthogonal (|R^T R - I| = " +
+                                std::to_string(defect) + ")");
+  return from_rotation(semi_axes, r);
+}
+
+QuadraticForm quadratic_form_from_quaternion(const std::array<double, 3>& semi_axes,
+                                             const std::array<double, 4>& quaternion) {
+  Eigen::Quaterniond q(quaternion[0], quaternion[1], quaternion[2], quaternion[3]);
+  const double norm = q.norm();
+  if (!(norm > 0) || !std::isfinite(norm))
+    throw std::invalid_argument("quadratic_form_from_quaternion: zero or non-finite quaternion");
+  q.coeffs() /= norm;
+  return from_rotation(semi_axes, q.toRotationMatrix());
+}
+
+QuadraticForm spheroid(double a, double c, const std::array<double, 3>& axis) {
+  Eigen::Vector3d n(axis[0], axis[1], axis[2]);
+  const double norm = n.norm();
+  if (!(norm > 0) || !std::isfinite(norm))
+    throw std::invalid_argument("spheroid: zero or non-finite axis");
+  n /= norm;
+  const Eigen::Matrix3d q =
+      a * a * Eigen::Matrix3d::Identity() + (c * c - a * a) * n * n.transpose();
+  return pack(q);
+}
+
+QuadraticForm sphere(double a) { return {a * a, 0, 0, a * a, 0, a * a}; }
+
+}  // namespace pwcontact

@@ -1,0 +1,99 @@
+#include "pwcontact/families.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "pwcontact/ellipsoid.hpp"
+
+namespace pwcontact {
+namespace {
+
+constexpr double two_pi = 6.283185307179586476925286766559;
+
+// Uniform in [0, 1) from the top 53 bits: the same numbers on every platform
+// (std::uniform_real_distribution is implementation-defined).
+double uniform01(std::mt19937_64& engine) { return double(engine() >> 11) * 0x1.0p-53; }
+
+// Uniformly random rotation (Shoemake's subgroup algorithm), as (w, x, y, z).
+std::array<double, 4> random_quaternion(std::mt19937_64& engine) {
+  const double u1 = uniform01(engine), u2 = uniform01(engine), u3 = uniform01(engine);
+  const double a = std::sqrt(1 - u1), b = std::sqrt(u1);
+  return {b * std::cos(two_pi * u3), a * std::sin(two_pi * u2), a * std::cos(two_pi * u2),
+          b * std::sin(two_pi * u3)};
+}
+
+}  // namespace
+
+PairBatch<double> random_pairs(std::size_t n, std::uint64_t seed, const RandomFamily& family) {
+  std::mt19937_64 engine(seed);
+  PairBatch<double> pairs;
+  pairs.reserve(n);
+  const double lo = family.min_semi_axis, hi = family.max_semi_axis;
+  auto semi_axis = [&] {
+    const double u = uniform01(engine);
+    return family.log_uniform_axes ? lo * std::pow(hi / lo, u) : lo + (hi - lo) * u;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    QuadraticForm q[2];
+    for (auto& form : q) {
+      const std::array<double, 3> axes{semi_axis(), semi_axis(), semi_axis()};
+      form = quadratic_form_from_quaternion(axes, random_quaternion(engine));
+    }
+    const double distance = family.max_distance * uniform01(engine);
+    const double z = 2 * uniform01(engine) - 1, phi = two_pi * uniform01(engine);
+    const double rho = std::sqrt(std::max(0.0, 1 - z * z));
+    const double r[3] = {distance * rho * std::cos(phi), distance * rho * std::sin(phi),
+                         distance * z};
+    pairs.push_back(r, q[0].data(), q[1].data());
+  }
+  return pairs;
+}
+
+PairBatch<double> pw85_family() {
+  const double radii[3] = {0.01999, 1.999, 9.999};
+  const double distances[3] = {0.15, 1.1, 11.0};
+  const double g = (1 + std::sqrt(5.0)) / 2;  // golden ratio: icosahedron (0, +-1, +-g) and cyclic
+  std::array<double, 3> directions[12];
+  int k = 0;
+  for (double s1 : {1.0, -1.0})
+    for (double s2 : {1.0, -1.0}) {
+      directions[k++] = {0, s1, s2 * g};
+      directions[k++] = {s2 * g, 0, s1};
+      directions[k++] = {s1, s2 * g, 0};
+    }
+  for (auto& d : directions) {
+    const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (double& x : d) x /= norm;
+  }
+  std::vector<QuadraticForm> spheroids;
+  for (double a : radii)
+    for (double c : radii)
+      for (const auto& n : directions) spheroids.push_back(spheroid(a, c, n));
+
+  PairBatch<double> pairs;
+  pairs.reserve(pw85_family_size);
+  for (const auto& q1 : spheroids)
+    for (const auto& q2 : spheroids)
+      for (const auto& n : directions)
+        for (double d : distances) {
+          const double r[3] = {d * n[0], d * n[1], d * n[2]};
+          pairs.push_back(r, q1.data(), q2.data());
+        }
+  return pairs;
+}
+
+PairBatch<float> to_float(const PairBatch<double>& pairs) {
+  PairBatch<float> out(pairs.size());
+  auto copy = [](const std::vector<double>& from, std::vector<float>& to) {
+    for (std::size_t i = 0; i < from.size(); ++i) to[i] = float(from[i]);
+  };
+  for (int k = 0; k < 3; ++k) copy(pairs.r12(k), out.r12(k));
+  for (int k = 0; k < 6; ++k) {
+    copy(pairs.q1(k), out.q1(k));
+    copy(pairs.q2(k), out.q2(k));
+  }
+  return out;
+}
+
+}  // namespace pwcontact

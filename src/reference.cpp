@@ -1,0 +1,8 @@
+#include "pwcontact/reference.hpp"
+
+namespace pwcontact {
+template ContactResult<double> contact_function<double>(const double*, const double*,
+                                                        const double*, const ReferenceOptions&);
+template ContactResult<float> contact_function<float>(const float*, const float*, const float*,
+                                                      const ReferenceOptions&);
+}  // namespace pwcontact

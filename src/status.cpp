@@ -1,0 +1,38 @@
+#include "pwcontact/status.hpp"
+
+namespace pwcontact {
+
+const char* status_name(Status s) noexcept {
+  switch (s) {
+    case Status::ok: return "ok";
+    case Status::ok_fallback: return "ok_fallback";
+    case Status::non_finite_input: return "non_finite_input";
+    case Status::q1_not_positive_definite: return "q1_not_positive_definite";
+    case Status::q2_not_positive_definite: return "q2_not_positive_definite";
+    case Status::not_converged: return "not_converged";
+  }
+  return "unknown";
+}
+
+const char* status_description(Status s) noexcept {
+  switch (s) {
+    case Status::ok:
+      return "valid: converged within the batch kernel's fixed iterations";
+    case Status::ok_fallback:
+      return "valid: recomputed by the scalar reference path after the batch lane "
+             "missed its convergence check";
+    case Status::non_finite_input:
+      return "invalid: NaN or infinity in r12, q1 or q2 (mu2 and lambda are NaN)";
+    case Status::q1_not_positive_definite:
+      return "invalid: Q1 is not positive definite, e.g. zero, negative or singular "
+             "(mu2 and lambda are NaN)";
+    case Status::q2_not_positive_definite:
+      return "invalid: Q2 is not positive definite (mu2 and lambda are NaN)";
+    case Status::not_converged:
+      return "invalid: the reference path did not converge either (mu2 and lambda "
+             "are NaN)";
+  }
+  return "unknown status";
+}
+
+}  // namespace pwcontact
