@@ -102,8 +102,8 @@ extern template class PairBatch<float>;
 // chosen by measurement on random pairs (semi-axes in [0.5, 2]): the
 // smallest count that, with the convergence check and fallback, gives the
 // highest throughput (see README, "Choosing the iteration count").
-inline constexpr int default_iterations_double = 5;
-inline constexpr int default_iterations_float = 4;
+inline constexpr int default_iterations_double = 4;
+inline constexpr int default_iterations_float = 3;
 
 struct BatchOptions {
   int iterations = 0;        // fixed Newton iterations per lane; 0: the default above
