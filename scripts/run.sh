@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine: installs what is missing,
+# configures and builds with the CMake presets, then runs one job.
+#
+#   bash scripts/run.sh demo [args]   the main job on its embedded default
+#   bash scripts/run.sh test          the whole test suite (Release build)
+#   bash scripts/run.sh sanitize      the whole test suite under ASan + UBSan
+#   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+job="${1:-}"
+[ $# -gt 0 ] && shift
+case "$job" in
+  demo|test|sanitize|bench) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench [args...]" >&2; exit 2 ;;
+esac
+
+# Debian packages the build needs (compiler, CMake, and every dependency).
+packages=(g++ cmake make libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
+          libbenchmark-dev libboost-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "installing missing packages: ${missing[*]}" >&2
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+jobs="$(nproc)"
+case "$job" in
+  demo)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target pwcontact_cli
+    exec build/release/src/pwcontact demo "$@" ;;
+  test)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs"
+    exec ctest --preset release ;;
+  sanitize)
+    cmake --preset sanitize >/dev/null
+    cmake --build --preset sanitize -j "$jobs"
+    exec ctest --preset sanitize ;;
+  bench)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target pwcontact_bench
+    exec build/release/bench/pwcontact_bench "$@" ;;
+esac
