@@ -1,0 +1,176 @@
+#include "cli/text_output.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+
+#include "cli/command_line.hpp"
+
+namespace pwcontact::cli {
+namespace {
+
+[[noreturn]] void fail_to_write(const std::string& name, int error) {
+  throw CommandError(ExitStatus::io_error, "cannot write " + name + ": " + std::strerror(error));
+}
+
+std::string formatted(const char* format, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
+}  // namespace
+
+OutputFile::OutputFile(const std::string& path) {
+  if (path == "-") {
+    name_ = "<stdout>";
+    file_ = stdout;
+    return;
+  }
+  name_ = path;
+  struct stat existing {};
+  const bool exists = stat(path.c_str(), &existing) == 0;
+  if (exists && !S_ISREG(existing.st_mode)) {
+    // A device or a pipe (/dev/null, a FIFO) is written in place: renaming
+    // over it would replace the device itself. (A directory fails here.)
+    file_ = std::fopen(path.c_str(), "wb");
+    if (!file_) fail_to_write(name_, errno);
+    owns_file_ = true;
+    return;
+  }
+
+  // An existing file is replaced where it really is (through symbolic
+  // links), keeping its permissions; a new one gets those of any new file.
+  std::error_code error;
+  target_path_ = exists ? std::filesystem::canonical(path, error).string() : path;
+  if (error) target_path_ = path;
+  const mode_t mask = umask(0);
+  umask(mask);
+  const mode_t mode = exists ? (existing.st_mode & 07777) : (0666 & ~mask);
+
+  // A hidden name beside the target: rename() is atomic only within one file system.
+  const std::filesystem::path target(target_path_);
+  const std::filesystem::path directory = target.parent_path();
+  std::string pattern = (directory.empty() ? std::string() : directory.string() + "/") + "." +
+                        target.filename().string() + ".tmp-XXXXXX";
+  const int descriptor = mkstemp(pattern.data());
+  if (descriptor < 0) fail_to_write(name_, errno);
+  temporary_path_ = pattern;
+  fchmod(descriptor, mode);
+  file_ = fdopen(descriptor, "wb");
+  if (!file_) {
+    const int fdopen_error = errno;
+    close(descriptor);
+    unlink(temporary_path_.c_str());
+    fail_to_write(name_, fdopen_error);
+  }
+  owns_file_ = true;
+}
+
+OutputFile::~OutputFile() {
+  if (!owns_file_ || committed_) return;
+  std::fclose(file_);
+  if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
+}
+
+void OutputFile::write(std::string_view text) noexcept {
+  if (error_ == 0 && std::fwrite(text.data(), 1, text.size(), file_) != text.size())
+    error_ = errno ? errno : EIO;
+}
+
+void OutputFile::commit() {
+  if (error_ == 0 && std::fflush(file_) != 0) error_ = errno;
+  if (owns_file_) {
+    // fclose also reports delayed write errors (e.g. a full disk).
+    if (std::fclose(file_) != 0 && error_ == 0) error_ = errno;
+    committed_ = true;  // closed either way
+  }
+  if (error_ == 0 && !temporary_path_.empty() &&
+      std::rename(temporary_path_.c_str(), target_path_.c_str()) != 0)
+    error_ = errno;
+  if (error_ == 0) return;
+  if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
+  fail_to_write(name_, error_);
+}
+
+std::string wrap_words(std::string_view text, std::size_t indent, std::size_t width) {
+  std::string out;
+  std::size_t column = indent;
+  bool line_start = true;
+  for (std::size_t start = 0; start <= text.size();) {
+    const std::size_t end = std::min(text.find_first_of(" \n", start), text.size());
+    const std::string_view word = text.substr(start, end - start);
+    if (!word.empty()) {
+      if (!line_start && column + 1 + word.size() > width) {
+        out += "\n" + std::string(indent, ' ');
+        column = indent;
+      } else if (!line_start) {
+        out += ' ';
+        ++column;
+      }
+      out += word;
+      column += word.size();
+      line_start = false;
+    }
+    if (end < text.size() && text[end] == '\n') {
+      out += '\n';
+      column = 0;
+      line_start = true;
+      if (end + 1 < text.size() && text[end + 1] != '\n') {
+        out.append(indent, ' ');
+        column = indent;
+      }
+    }
+    start = end + 1;
+  }
+  return out;
+}
+
+std::string describe_seconds(double seconds) {
+  if (seconds >= 1) return formatted("%.2f s", seconds);
+  if (seconds >= 1e-3) return formatted("%.1f ms", seconds * 1e3);
+  return formatted("%.0f us", seconds * 1e6);
+}
+
+std::string describe_rate(std::size_t pairs, double seconds) {
+  if (!(seconds > 0)) return "n/a";
+  const double rate = double(pairs) / seconds;
+  if (rate >= 1e6) return formatted("%.3g M pairs/s", rate / 1e6);
+  if (rate >= 1e3) return formatted("%.3g k pairs/s", rate / 1e3);
+  return formatted("%.3g pairs/s", rate);
+}
+
+std::string describe_status_counts(const BatchReport& report) {
+  std::string text;
+  for (int s = 0; s < status_count; ++s)
+    if (report.status_counts[s] != 0)
+      text += std::string(text.empty() ? "" : ", ") + status_name(Status(s)) + " " +
+              std::to_string(report.status_counts[s]);
+  return text.empty() ? "none" : text;
+}
+
+std::string status_code_table() {
+  constexpr std::size_t description_column = 31, width = 79;
+  std::string text = "Status codes (third column of 'pwcontact contact' output):\n";
+  for (int s = 0; s < status_count; ++s) {
+    std::string row = "  " + std::to_string(s) + "  " + status_name(Status(s));
+    row.resize(std::max(description_column, row.size() + 2), ' ');
+    text += row + wrap_words(status_description(Status(s)), description_column, width) + "\n";
+  }
+  return text;
+}
+
+std::string exit_status_text() {
+  return "Exit status:\n"
+         "  0  success (also when some pairs have an invalid status)\n"
+         "  1  an input cannot be read or the output cannot be written\n"
+         "  2  bad command line, malformed input line, or an instruction set\n"
+         "     this CPU lacks\n";
+}
+
+}  // namespace pwcontact::cli
