@@ -12,9 +12,13 @@ QuadraticForm pack(const Eigen::Matrix3d& q) {
 }
 
 // Q = R diag(a^2) R^T (eq. 2: the columns of R are the principal directions).
+// A negative semi-axis enters with its sign (a |a|), so that it yields a
+// negative eigenvalue, which the solvers report, instead of passing for its
+// absolute value.
 QuadraticForm from_rotation(const std::array<double, 3>& semi_axes, const Eigen::Matrix3d& r) {
-  const Eigen::Vector3d a2(semi_axes[0] * semi_axes[0], semi_axes[1] * semi_axes[1],
-                           semi_axes[2] * semi_axes[2]);
+  const Eigen::Vector3d a2(semi_axes[0] * std::abs(semi_axes[0]),
+                           semi_axes[1] * std::abs(semi_axes[1]),
+                           semi_axes[2] * std::abs(semi_axes[2]));
   return pack(r * a2.asDiagonal() * r.transpose());
 }
 
@@ -23,8 +27,9 @@ QuadraticForm from_rotation(const std::array<double, 3>& semi_axes, const Eigen:
 QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
                              const std::array<double, 9>& rotation) {
   const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> r(rotation.data());
+  // (maxCoeff skips NaN, hence the explicit finiteness check.)
   const double defect = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (!(defect <= 1e-9))
+  if (!r.allFinite() || !(defect <= 1e-9))
     throw std::invalid_argument("quadratic_form: rotation matrix is not orthogonal (|R^T R - I| = " +
                                 std::to_string(defect) + ")");
   return from_rotation(semi_axes, r);
@@ -46,11 +51,14 @@ QuadraticForm spheroid(double a, double c, const std::array<double, 3>& axis) {
   if (!(norm > 0) || !std::isfinite(norm))
     throw std::invalid_argument("spheroid: zero or non-finite axis");
   n /= norm;
-  const Eigen::Matrix3d q =
-      a * a * Eigen::Matrix3d::Identity() + (c * c - a * a) * n * n.transpose();
+  const double a2 = a * std::abs(a), c2 = c * std::abs(c);  // signed, as in from_rotation
+  const Eigen::Matrix3d q = a2 * Eigen::Matrix3d::Identity() + (c2 - a2) * n * n.transpose();
   return pack(q);
 }
 
-QuadraticForm sphere(double a) { return {a * a, 0, 0, a * a, 0, a * a}; }
+QuadraticForm sphere(double a) {
+  const double a2 = a * std::abs(a);  // signed, as in from_rotation
+  return {a2, 0, 0, a2, 0, a2};
+}
 
 }  // namespace pwcontact

@@ -1,1 +1,329 @@
-// placeholder: being written
+// The batch path lane by lane, on every instruction set this CPU supports:
+// every lane against the scalar reference, tails, thread-count independence,
+// the report, the instruction-set override and the fallback.
+#include <cstring>
+#include <stdexcept>
+
+#include "test_support.hpp"
+
+namespace pwtest {
+namespace {
+
+using pwcontact::ContactOutputs;
+
+class BatchLanes : public ::testing::TestWithParam<Isa> {};
+INSTANTIATE_TEST_SUITE_P(EverySupportedIsa, BatchLanes, ::testing::ValuesIn(isas()),
+                         isa_param_name);
+
+template <class Vector>
+Vector first(const Vector& all, std::size_t n) {
+  return {all.begin(), all.begin() + std::ptrdiff_t(n)};
+}
+
+// Every batch size from 1 to 3 lanes + 1 covers: a lone partial group, exact
+// single and double groups (the kernel interleaves two), and tails of every
+// length after them. The inputs have exactly n elements, so a read past the
+// end is a heap overflow under AddressSanitizer; the outputs are guarded.
+template <class T>
+void expect_every_lane_matches_reference(Isa isa) {
+  const std::size_t lanes = std::size_t(pwcontact::simd_lanes(isa, single_precision<T>));
+  const auto pool = convert_all<T>(make_random_pairs(3 * lanes + 1, 21));
+  const auto references = double_references(pool);
+  LaneErrors worst;
+  for (std::size_t n = 1; n <= pool.size(); ++n) {
+    const auto pairs = first(pool, n);
+    const BatchRun<T> run = run_batch(make_batch(pairs), with_isa(isa));
+    const LaneErrors errors = expect_lanes_match_reference(
+        first(references, n), run, label<T>("batch of " + std::to_string(n), isa));
+    worst.mu2.add(n, errors.mu2.value);
+    worst.lambda.add(n, errors.lambda.value);
+  }
+  print_measured(label<T>("every lane vs reference, mu2 relative error", isa), worst.mu2);
+  print_measured(label<T>("every lane vs reference, lambda absolute error", isa), worst.lambda);
+}
+
+TEST_P(BatchLanes, EveryLaneOfEveryBatchSizeMatchesReferenceInDouble) {
+  expect_every_lane_matches_reference<double>(GetParam());
+}
+
+TEST_P(BatchLanes, EveryLaneOfEveryBatchSizeMatchesReferenceInFloat) {
+  expect_every_lane_matches_reference<float>(GetParam());
+}
+
+// A larger sample of lanes than the size sweep, for the float tolerance:
+// the sweep sees only a few dozen pairs.
+template <class T>
+void expect_many_lanes_match_reference(Isa isa) {
+  const auto pairs = convert_all<T>(make_random_pairs(20000, 22));
+  const BatchRun<T> run = run_batch(make_batch(pairs), with_isa(isa));
+  const LaneErrors errors =
+      expect_lanes_match_reference(double_references(pairs), run, label<T>("20000 lanes", isa));
+  print_measured(label<T>("20000 random lanes, mu2 relative error", isa), errors.mu2);
+  print_measured(label<T>("20000 random lanes, lambda absolute error", isa), errors.lambda);
+}
+
+TEST_P(BatchLanes, ManyRandomLanesMatchReferenceInDouble) {
+  expect_many_lanes_match_reference<double>(GetParam());
+}
+
+TEST_P(BatchLanes, ManyRandomLanesMatchReferenceInFloat) {
+  expect_many_lanes_match_reference<float>(GetParam());
+}
+
+// Lanes at wildly different scales side by side (Q -> k^2 Q, r -> k r with k
+// cycling through the factors), out to where products of Q's entries would
+// overflow or underflow the type unless the kernel nondimensionalises.
+template <class T>
+void expect_extreme_scales_match_reference(Isa isa, const std::vector<double>& factors) {
+  auto pairs = make_random_pairs(1000, 34);
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    pairs[i] = scaled(pairs[i], factors[i % factors.size()]);
+  const auto converted = convert_all<T>(pairs);
+  const BatchRun<T> run = run_batch(make_batch(converted), with_isa(isa));
+  expect_lanes_match_reference(double_references(converted), run, label<T>("extreme scales", isa));
+}
+
+TEST_P(BatchLanes, ExtremeScalesMatchReferenceInDouble) {
+  expect_extreme_scales_match_reference<double>(GetParam(),
+                                                {1e-150, 1e-100, 1e-10, 1, 1e10, 1e100, 1e150});
+}
+
+TEST_P(BatchLanes, ExtremeScalesMatchReferenceInFloat) {
+  // Float's range is 1e+-38: k^2 q stays normal for k in [1e-15, 1e15].
+  expect_extreme_scales_match_reference<float>(GetParam(), {1e-15, 1e-6, 1, 1e6, 1e15});
+}
+
+// ---------------------------------------------------------------------------
+
+// The same pairs behind 1 .. 2 lanes + 1 other pairs: each pair moves to
+// every lane position and between the kernel's two-group blocks, single
+// groups and the padded tail. Its answer must not move with it.
+template <class T>
+void expect_position_changes_nothing(Isa isa) {
+  const std::size_t lanes = std::size_t(pwcontact::simd_lanes(isa, single_precision<T>));
+  const auto pairs = convert_all<T>(make_random_pairs(200, 32));
+  const BatchRun<T> alone = run_batch(make_batch(pairs), with_isa(isa));
+  for (std::size_t shift = 1; shift <= 2 * lanes + 1; ++shift) {
+    auto shifted = convert_all<T>(make_random_pairs(shift, 33));
+    shifted.insert(shifted.end(), pairs.begin(), pairs.end());
+    std::vector<std::size_t> moved(pairs.size());
+    for (std::size_t i = 0; i < pairs.size(); ++i) moved[i] = shift + i;
+    const BatchRun<T> run = run_batch(make_batch(shifted), with_isa(isa));
+    expect_bitwise_equal(select_lanes(run, moved), alone,
+                         label<T>("shifted by " + std::to_string(shift), isa));
+  }
+}
+
+TEST_P(BatchLanes, ResultsDoNotDependOnThePositionInTheBatchInDouble) {
+  expect_position_changes_nothing<double>(GetParam());
+}
+
+TEST_P(BatchLanes, ResultsDoNotDependOnThePositionInTheBatchInFloat) {
+  expect_position_changes_nothing<float>(GetParam());
+}
+
+// 20 chunks of 2048 pairs and a partial one, from a family with semi-axes over
+// two decades so that some lanes take the fallback inside some chunks.
+template <class T>
+void expect_thread_count_changes_nothing(Isa isa) {
+  pwcontact::RandomFamily family;
+  family.min_semi_axis = 0.1;
+  family.max_semi_axis = 10;
+  family.log_uniform_axes = true;
+  const PairBatch<T> batch =
+      make_batch(convert_all<T>(make_random_pairs(20 * 2048 + 37, 23, family)));
+  const BatchRun<T> one = run_batch(batch, with_isa(isa, 0, 1));
+  EXPECT_GT(one.report.fallbacks, 0u) << "the family should exercise the fallback";
+  for (int threads : {2, 3}) {
+    const BatchRun<T> many = run_batch(batch, with_isa(isa, 0, threads));
+    EXPECT_EQ(many.report.threads, threads);
+    expect_bitwise_equal(one, many, label<T>(std::to_string(threads) + " threads", isa));
+  }
+}
+
+TEST_P(BatchLanes, ResultsAreBitwiseIdenticalForOneTwoAndThreeThreadsInDouble) {
+  expect_thread_count_changes_nothing<double>(GetParam());
+}
+
+TEST_P(BatchLanes, ResultsAreBitwiseIdenticalForOneTwoAndThreeThreadsInFloat) {
+  expect_thread_count_changes_nothing<float>(GetParam());
+}
+
+// ---------------------------------------------------------------------------
+
+// Random pairs with every third one made invalid in a different way, so that
+// the report has valid, fallback and invalid statuses to count.
+template <class T>
+PairBatch<T> mixed_batch(std::size_t n) {
+  auto pairs = convert_all<T>(make_random_pairs(n, 24));
+  for (std::size_t i = 0; i < n; i += 3) {
+    if (i % 2 == 0)
+      pairs[i].r12[1] = std::numeric_limits<T>::quiet_NaN();
+    else
+      pairs[i].q2[0] = -1;
+  }
+  return make_batch(pairs);
+}
+
+template <class T>
+void expect_report_consistent_with_statuses(Isa isa, int iterations, int threads) {
+  const std::size_t n = 5000;
+  const BatchRun<T> run = run_batch(mixed_batch<T>(n), with_isa(isa, iterations, threads));
+  const BatchReport& report = run.report;
+  std::size_t counted[pwcontact::status_count] = {};
+  for (Status s : run.status) {
+    ASSERT_LT(int(s), pwcontact::status_count) << "status outside the enumeration";
+    ++counted[int(s)];
+  }
+  std::size_t invalid = 0, total = 0;
+  for (int s = 0; s < pwcontact::status_count; ++s) {
+    EXPECT_EQ(report.status_counts[s], counted[s]) << pwcontact::status_name(Status(s));
+    total += report.status_counts[s];
+    if (!pwcontact::is_valid(Status(s))) invalid += counted[s];
+  }
+  EXPECT_EQ(report.pairs, n);
+  EXPECT_EQ(total, n);
+  EXPECT_EQ(report.invalid, invalid);
+  EXPECT_GT(report.invalid, 0u);
+  // Every fallback on a valid pair succeeds in the reference path.
+  EXPECT_EQ(report.fallbacks, counted[int(Status::ok_fallback)]);
+  EXPECT_EQ(report.isa, isa);
+  const int default_iterations = single_precision<T> ? pwcontact::default_iterations_float
+                                                     : pwcontact::default_iterations_double;
+  EXPECT_EQ(report.iterations, iterations > 0 ? iterations : default_iterations);
+  EXPECT_GE(report.threads, 1);
+  if (threads > 0) {
+    EXPECT_LE(report.threads, threads);
+  }
+}
+
+TEST_P(BatchLanes, ReportAgreesWithTheStatusesInDouble) {
+  expect_report_consistent_with_statuses<double>(GetParam(), 0, 0);
+  expect_report_consistent_with_statuses<double>(GetParam(), 2, 2);
+}
+
+TEST_P(BatchLanes, ReportAgreesWithTheStatusesInFloat) {
+  expect_report_consistent_with_statuses<float>(GetParam(), 0, 0);
+  expect_report_consistent_with_statuses<float>(GetParam(), 2, 2);
+}
+
+// ---------------------------------------------------------------------------
+// One fixed Newton iteration from the radial guess leaves most lanes far from
+// converged (the error is still ~1e-7 after four on this family): they must
+// come back from the fallback, flagged and counted, and the lanes that do pass
+// the check after one iteration must be as accurate as any other.
+
+template <class T>
+void expect_fallback_lanes_flagged_and_accurate(Isa isa) {
+  const auto pairs = convert_all<T>(make_random_pairs(4096, 25));
+  const BatchRun<T> run = run_batch(make_batch(pairs), with_isa(isa, 1));
+  std::size_t flagged = 0;
+  for (Status s : run.status) flagged += s == Status::ok_fallback;
+  std::printf("[ measured ] %s: %zu of %zu lanes fell back\n",
+              label<T>("one iteration", isa).c_str(), flagged, pairs.size());
+  EXPECT_GT(flagged, pairs.size() / 2);
+  EXPECT_EQ(run.report.fallbacks, flagged);
+  EXPECT_EQ(run.report.iterations, 1);
+  expect_lanes_match_reference(double_references(pairs), run, label<T>("one iteration", isa));
+}
+
+TEST_P(BatchLanes, FallbackLanesAreFlaggedCountedAndAccurateInDouble) {
+  expect_fallback_lanes_flagged_and_accurate<double>(GetParam());
+}
+
+TEST_P(BatchLanes, FallbackLanesAreFlaggedCountedAndAccurateInFloat) {
+  expect_fallback_lanes_flagged_and_accurate<float>(GetParam());
+}
+
+// ---------------------------------------------------------------------------
+// Choosing the instruction set.
+
+TEST_P(BatchLanes, OptionForcesTheIsa) {
+  const ScopedEnvironment no_override("PWCONTACT_ISA", std::nullopt);
+  const PairBatch<double> batch = make_batch(make_random_pairs(10, 26));
+  EXPECT_EQ(run_batch(batch, with_isa(GetParam())).report.isa, GetParam());
+  EXPECT_EQ(run_batch(pwcontact::to_float(batch), with_isa(GetParam())).report.isa, GetParam());
+}
+
+TEST_P(BatchLanes, EnvironmentVariableChoosesTheIsaWhenAutomatic) {
+  const ScopedEnvironment override_isa("PWCONTACT_ISA", pwcontact::isa_name(GetParam()));
+  EXPECT_EQ(pwcontact::resolve_isa(Isa::automatic), GetParam());
+  EXPECT_EQ(run_batch(make_batch(make_random_pairs(10, 27))).report.isa, GetParam());
+}
+
+TEST_P(BatchLanes, OptionWinsOverTheEnvironmentVariable) {
+  // Point the environment at another supported ISA where there is one.
+  const std::vector<Isa> all = isas();
+  const Isa other = all.size() > 1 && all.front() == GetParam() ? all.back() : all.front();
+  const ScopedEnvironment override_isa("PWCONTACT_ISA", pwcontact::isa_name(other));
+  EXPECT_EQ(run_batch(make_batch(make_random_pairs(10, 28)), with_isa(GetParam())).report.isa,
+            GetParam());
+}
+
+TEST(IsaChoice, WithoutOverrideTheBestSupportedIsaIsUsed) {
+  const ScopedEnvironment no_override("PWCONTACT_ISA", std::nullopt);
+  EXPECT_EQ(run_batch(make_batch(make_random_pairs(10, 29))).report.isa, isas().front());
+  const ScopedEnvironment automatic("PWCONTACT_ISA", "auto");
+  EXPECT_EQ(run_batch(make_batch(make_random_pairs(10, 29))).report.isa, isas().front());
+}
+
+TEST(IsaChoice, UnknownEnvironmentValueThrowsNamingIt) {
+  const ScopedEnvironment override_isa("PWCONTACT_ISA", "avx9000");
+  const PairBatch<double> batch = make_batch(make_random_pairs(10, 30));
+  std::vector<double> mu2(batch.size());
+  try {
+    pwcontact::contact_function_batch(batch.view(), ContactOutputs<double>{mu2.data()});
+    ADD_FAILURE() << "no exception for PWCONTACT_ISA=avx9000";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("avx9000"), std::string::npos) << e.what();
+  }
+}
+
+TEST(IsaChoice, LaneCountsMatchTheRegisterWidths) {
+  // 128, 256 and 512-bit registers.
+  const std::pair<Isa, int> widths[] = {{Isa::sse2, 16}, {Isa::avx2, 32}, {Isa::avx512, 64}};
+  for (const auto& [isa, bytes] : widths) {
+    if (!pwcontact::isa_supported(isa)) continue;
+    EXPECT_EQ(pwcontact::simd_lanes(isa, false), bytes / 8) << pwcontact::isa_name(isa);
+    EXPECT_EQ(pwcontact::simd_lanes(isa, true), bytes / 4) << pwcontact::isa_name(isa);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Optional and required outputs.
+
+template <class T>
+void expect_optional_outputs_may_be_null(Isa isa) {
+  const PairBatch<T> batch = mixed_batch<T>(1000);
+  const BatchRun<T> full = run_batch(batch, with_isa(isa, 2));
+  std::vector<T> mu2(batch.size());
+  const BatchReport report = pwcontact::contact_function_batch(
+      batch.view(), ContactOutputs<T>{mu2.data()}, with_isa(isa, 2));
+  EXPECT_EQ(std::memcmp(mu2.data(), full.mu2.data(), mu2.size() * sizeof(T)), 0);
+  EXPECT_EQ(report.fallbacks, full.report.fallbacks);
+  EXPECT_EQ(report.invalid, full.report.invalid);
+  for (int s = 0; s < pwcontact::status_count; ++s)
+    EXPECT_EQ(report.status_counts[s], full.report.status_counts[s]);
+}
+
+TEST_P(BatchLanes, NullLambdaAndStatusGiveTheSameMu2AndCounts) {
+  expect_optional_outputs_may_be_null<double>(GetParam());
+  expect_optional_outputs_may_be_null<float>(GetParam());
+}
+
+TEST(BatchCall, NullMu2Throws) {
+  const PairBatch<double> batch = make_batch(make_random_pairs(10, 31));
+  std::vector<double> lambda(batch.size());
+  std::vector<Status> status(batch.size());
+  EXPECT_THROW(pwcontact::contact_function_batch(
+                   batch.view(), ContactOutputs<double>{nullptr, lambda.data(), status.data()}),
+               std::invalid_argument);
+  const PairBatch<float> single = pwcontact::to_float(batch);
+  std::vector<float> lambda_f(batch.size());
+  EXPECT_THROW(pwcontact::contact_function_batch(
+                   single.view(), ContactOutputs<float>{nullptr, lambda_f.data(), status.data()}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pwtest

@@ -2,8 +2,9 @@
 // Q = sum_i a_i^2 v_i v_i^T) from its semi-axes and orientation, as the
 // 6 numbers the solvers take (upper triangle, row-major, eq. 3).
 //
-// Semi-axes are used as given: a zero or negative one yields a Q that the
-// solvers report as not positive definite rather than an exception here.
+// Semi-axes are used as given: a zero one yields a singular Q and a negative
+// one a negative eigenvalue (a |a| instead of a^2), both of which the solvers
+// report as not positive definite, rather than an exception here.
 #pragma once
 
 #include <array>

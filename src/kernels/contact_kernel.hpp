@@ -278,33 +278,35 @@ inline void solve_groups(const PairSpan<T>& in, const ResultSpan<T>& out, std::s
   }
 }
 
-// The whole span: full groups of U, then single groups, then the tail padded
-// into a local buffer so that nothing is read or written past n.
+// The whole span in blocks of U groups, the last block padded into a local
+// buffer so that nothing is read or written past n. Every pair goes through
+// the same instantiation: the compiler may fuse multiply-adds differently in
+// differently shaped code, and a pair's result must not depend on where it
+// sits in the batch.
 template <class Arch, class T>
 void solve_span(const PairSpan<T>& in, const ResultSpan<T>& out, std::size_t n, int iterations) {
-  constexpr std::size_t W = xsimd::batch<T, Arch>::size;
   constexpr int U = 2;
+  constexpr std::size_t block = U * xsimd::batch<T, Arch>::size;
   std::size_t i = 0;
-  for (; i + U * W <= n; i += U * W) solve_groups<Arch, T, U>(in, out, i, iterations);
-  for (; i + W <= n; i += W) solve_groups<Arch, T, 1>(in, out, i, iterations);
+  for (; i + block <= n; i += block) solve_groups<Arch, T, U>(in, out, i, iterations);
   if (i == n) return;
 
-  // Tail: the missing lanes repeat the first pair of the tail, so they hold a
-  // valid problem and cost nothing special.
+  // The missing lanes repeat the first pair of the tail, so they hold a valid
+  // problem and cost nothing special.
   const std::size_t rest = n - i;
-  alignas(64) T buffer[15][W];
-  alignas(64) T mu2[W], lambda[W];
-  Status status[W];
+  alignas(64) T buffer[15][block];
+  alignas(64) T mu2[block], lambda[block];
+  Status status[block];
   PairSpan<T> padded;
   for (int k = 0; k < 15; ++k) {
     const T* source = k < 3 ? in.r12[k] : k < 9 ? in.q1[k - 3] : in.q2[k - 9];
-    for (std::size_t l = 0; l < W; ++l) buffer[k][l] = source[i + (l < rest ? l : 0)];
+    for (std::size_t l = 0; l < block; ++l) buffer[k][l] = source[i + (l < rest ? l : 0)];
     if (k < 3) padded.r12[k] = buffer[k];
     else if (k < 9) padded.q1[k - 3] = buffer[k];
     else padded.q2[k - 9] = buffer[k];
   }
   const ResultSpan<T> local{mu2, out.lambda ? lambda : nullptr, status};
-  solve_groups<Arch, T, 1>(padded, local, 0, iterations);
+  solve_groups<Arch, T, U>(padded, local, 0, iterations);
   for (std::size_t l = 0; l < rest; ++l) {
     out.mu2[i + l] = mu2[l];
     if (out.lambda) out.lambda[i + l] = lambda[l];
