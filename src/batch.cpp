@@ -14,10 +14,11 @@
 namespace pwcontact {
 namespace {
 
-// Pairs per chunk: a multiple of every lane count times the kernel's
-// interleave, small enough to balance threads, large enough that the
-// scheduling cost (~1 us) is noise next to the work (~50 us).
-constexpr std::size_t chunk_pairs = 2048;
+// Pairs per chunk: a multiple of every kernel's block (lanes times
+// interleaved groups: 4 to 48), so that only a batch's last chunk has a
+// padded tail; small enough to balance threads, large enough that the
+// scheduling cost (~1 us) is noise next to the work (~60 us).
+constexpr std::size_t chunk_pairs = 48 * 48;
 
 const kernels::KernelTable& kernel_table(Isa isa) {
   switch (isa) {

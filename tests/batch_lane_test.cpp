@@ -122,8 +122,9 @@ TEST_P(BatchLanes, ResultsDoNotDependOnThePositionInTheBatchInFloat) {
   expect_position_changes_nothing<float>(GetParam());
 }
 
-// 20 chunks of 2048 pairs and a partial one, from a family with semi-axes over
-// two decades so that some lanes take the fallback inside some chunks.
+// Tens of the driver's chunks (a few thousand pairs each) and a partial one,
+// from a family with semi-axes over two decades so that some lanes take the
+// fallback inside some chunks.
 template <class T>
 void expect_thread_count_changes_nothing(Isa isa) {
   pwcontact::RandomFamily family;
