@@ -108,8 +108,11 @@ BatchReport run_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& ou
 
       for (std::size_t i = begin; i < begin + n; ++i) {
         if (status[i] == kernels::needs_fallback) {
+          // The reference path validates the input too: invalid pairs get
+          // their exact status here and are not counted as fallbacks.
           const ContactResult<double> ref = reference_for_pair(pairs, i);
-          ++fallbacks;
+          const bool solved = ref.status == Status::ok || ref.status == Status::not_converged;
+          fallbacks += solved;
           out.mu2[i] = T(ref.mu2);
           if (out.lambda) out.lambda[i] = T(ref.lambda);
           status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;

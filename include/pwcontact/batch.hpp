@@ -114,7 +114,9 @@ struct BatchOptions {
 // What a batch call did.
 struct BatchReport {
   std::size_t pairs = 0;
-  std::size_t fallbacks = 0;  // lanes recomputed by the reference path
+  std::size_t fallbacks = 0;  // valid lanes that missed the convergence check and were
+                              // recomputed by the reference path (status ok_fallback or
+                              // not_converged)
   std::size_t invalid = 0;    // pairs whose status is not valid (mu2 is NaN)
   std::size_t status_counts[status_count] = {};
   Isa isa = Isa::automatic;   // the instruction set actually used

@@ -181,11 +181,12 @@ inline void solve_groups(const PairSpan<T>& in, const ResultSpan<T>& out, std::s
       q2[u][k] = B::load_unaligned(in.q2[k] + i);
     }
 
-    // x - x is 0 for every finite x and NaN for NaN and +-inf.
-    B probe = zero;
-    for (int k = 0; k < 3; ++k) probe += r[u][k] - r[u][k];
-    for (int k = 0; k < 6; ++k) probe += (q1[u][k] - q1[u][k]) + (q2[u][k] - q2[u][k]);
-    finite[u] = probe == zero;
+    // The sum of the inputs is finite when they all are (a NaN or an infinity
+    // makes it NaN or infinite), and only rarely otherwise (overflow): a lane
+    // that fails this cheap test goes to the reference path, which decides.
+    B sum = r[u][0] + r[u][1] + r[u][2];
+    for (int k = 0; k < 6; ++k) sum += q1[u][k] + q2[u][k];
+    finite[u] = (sum - sum) == zero;
 
     // Nondimensionalise by a power of two (exact): r -> r t, Q -> Q t^2, with
     // t = 1 / 2^floor(log2 sqrt(max diagonal)); mu^2 is invariant. Only needed
@@ -263,23 +264,15 @@ inline void solve_groups(const PairSpan<T>& in, const ResultSpan<T>& out, std::s
                   (newton[u] | (xsimd::abs(res.g) * (hi[u] - lo[u]) <= bound));
     if constexpr (KernelTolerance<T>::checks_growth)
       converged = converged & (res.growth <= B(KernelTolerance<T>::max_growth));
-    const M valid = finite[u] & pd1[u] & pd2[u];
-
-    const B mu2 = xsimd::select(coincident[u], zero, res.f);
-    const B lam = xsimd::select(coincident[u], lambda_coincident[u], lambda[u]);
-    xsimd::select(valid, mu2, nan).store_unaligned(out.mu2 + i);
-    if (out.lambda) xsimd::select(valid, lam, nan).store_unaligned(out.lambda + i);
-
-    const B code = xsimd::select(
-        !finite[u], B(T(Status::non_finite_input)),
-        xsimd::select(!pd1[u], B(T(Status::q1_not_positive_definite)),
-                      xsimd::select(!pd2[u], B(T(Status::q2_not_positive_definite)),
-                                    xsimd::select(converged | coincident[u], B(T(Status::ok)),
-                                                  B(T(needs_fallback))))));
-    alignas(64) T codes[W];
-    code.store_aligned(codes);
-    for (std::size_t l = 0; l < W; ++l)
-      out.status[i + l] = static_cast<Status>(static_cast<std::uint8_t>(codes[l]));
+    // Everything else, invalid input included, is the reference path's to
+    // answer: it validates the input and assigns the exact status.
+    const M accepted = finite[u] & pd1[u] & pd2[u] & (converged | coincident[u]);
+    xsimd::select(coincident[u], zero, res.f).store_unaligned(out.mu2 + i);
+    if (out.lambda)
+      xsimd::select(coincident[u], lambda_coincident[u], lambda[u]).store_unaligned(out.lambda + i);
+    bool lanes[W];
+    accepted.store_unaligned(lanes);
+    for (std::size_t l = 0; l < W; ++l) out.status[i + l] = lanes[l] ? Status::ok : needs_fallback;
   }
 }
 

@@ -26,12 +26,15 @@ struct ResultSpan {
   Status* status;
 };
 
-// Written by the kernels for lanes that missed their convergence check; the
-// driver recomputes those pairs with the reference path and replaces it.
+// Written by the kernels for every lane they do not accept: lanes that missed
+// their convergence check, and lanes whose input failed the kernel's cheap
+// validity tests. The driver recomputes those pairs with the reference path,
+// which validates the input and assigns the exact status.
 inline constexpr Status needs_fallback = static_cast<Status>(0xFF);
 
 // What one instruction set offers. `solve_*` handle any n (tails included,
-// without reading or writing past n) with a fixed number of Newton iterations.
+// without reading or writing past n) with a fixed number of Newton iterations,
+// and write status ok or needs_fallback.
 struct KernelTable {
   const char* name;
   int lanes_double;
