@@ -1,9 +1,12 @@
-// The batch driver: splits the pairs into chunks, runs the chosen kernel on
-// each chunk in OpenMP threads, and recomputes with the reference path the
-// lanes that missed their convergence check.
+// The batch driver: resolves the options, splits the pairs into chunks, runs
+// the chosen kernel on each chunk in OpenMP threads, and answers with the
+// reference path the lanes the kernels left (status needs_fallback): lanes
+// that did not converge or stayed undecided, and lanes whose input failed the
+// kernels' cheap checks, which the reference path validates exactly.
 #include <omp.h>
 
 #include <algorithm>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -16,8 +19,9 @@ namespace {
 
 // Pairs per chunk: a multiple of every kernel's block (lanes times
 // interleaved groups: 4 to 48), so that only a batch's last chunk has a
-// padded tail; small enough to balance threads, large enough that the
-// scheduling cost (~1 us) is noise next to the work (~60 us).
+// padded tail; small enough to balance threads and to keep a chunk's kept
+// lanes in cache, large enough that the scheduling cost (~1 us) is noise
+// next to the work (~60 us).
 constexpr std::size_t chunk_pairs = 48 * 48;
 
 const kernels::KernelTable& kernel_table(Isa isa) {
@@ -28,39 +32,44 @@ const kernels::KernelTable& kernel_table(Isa isa) {
   }
 }
 
-void solve_span(const kernels::KernelTable& table, const kernels::PairSpan<double>& in,
-                const kernels::ResultSpan<double>& out, std::size_t n, int iterations) {
-  table.solve_double(in, out, n, iterations);
-}
-void solve_span(const kernels::KernelTable& table, const kernels::PairSpan<float>& in,
-                const kernels::ResultSpan<float>& out, std::size_t n, int iterations) {
-  table.solve_float(in, out, n, iterations);
-}
-
-// The fallback always runs in double, also for float batches: a lane that
-// failed in float gets the better answer, rounded once to float.
 template <class T>
-ContactResult<double> reference_for_pair(const PairBatchView<T>& pairs, std::size_t i) {
-  double r[3], q1[6], q2[6];
-  for (int k = 0; k < 3; ++k) r[k] = pairs.r12[k][i];
-  for (int k = 0; k < 6; ++k) {
-    q1[k] = pairs.q1[k][i];
-    q2[k] = pairs.q2[k][i];
-  }
-  return contact_function<double>(r, q1, q2);
-}
+constexpr bool single_input = std::is_same<T, float>::value;
 
+// The options with nothing left automatic, checked against the input type.
 template <class T>
-void check_call(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
-                const BatchOptions& options) {
+BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   if (options.iterations < 0)
-    throw std::invalid_argument("BatchOptions::iterations must be >= 0 (0 = default), got " +
+    throw std::invalid_argument("BatchOptions::iterations must be >= 0 (0 = automatic), got " +
                                 std::to_string(options.iterations));
   if (options.threads < 0)
     throw std::invalid_argument("BatchOptions::threads must be >= 0 (0 = all), got " +
                                 std::to_string(options.threads));
-  if (pairs.size == 0) return;
-  if (!out.mu2) throw std::invalid_argument("ContactOutputs::mu2 must not be null");
+  BatchReport report;
+  report.pairs = pairs;
+  report.isa = resolve_isa(options.isa);
+  report.iterations = options.iterations;
+  report.precision = options.precision;
+  if (report.precision == Precision::automatic)
+    report.precision = single_input<T> ? Precision::single_precision : Precision::double_precision;
+  if (single_input<T> && report.precision != Precision::single_precision)
+    throw std::invalid_argument(std::string("float pairs are solved in single precision, not ") +
+                                precision_name(report.precision));
+  if (options.accuracy == Accuracy::high && report.precision == Precision::single_precision)
+    throw std::invalid_argument(
+        "Accuracy::high refines the answer in double: it needs double or mixed precision");
+  // Newton on g: measured at least as fast as log_odds wherever the targets
+  // are set (README, "The trade"); log_odds needs fewer iterations on the
+  // most elongated shapes but costs more per iteration.
+  report.formulation = options.formulation == Formulation::automatic ? Formulation::newton
+                                                                      : options.formulation;
+  const std::size_t chunks = (pairs + chunk_pairs - 1) / chunk_pairs;
+  const int wanted = options.threads > 0 ? options.threads : omp_get_max_threads();
+  report.threads = int(std::min<std::size_t>(std::size_t(wanted), std::max<std::size_t>(chunks, 1)));
+  return report;
+}
+
+template <class T>
+void check_pairs(const PairBatchView<T>& pairs) {
   for (const T* p : pairs.r12)
     if (!p) throw std::invalid_argument("PairBatchView::r12 has a null component");
   for (int k = 0; k < 6; ++k)
@@ -68,65 +77,228 @@ void check_call(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
       throw std::invalid_argument("PairBatchView::q1 or q2 has a null component");
 }
 
+// Which optional outputs are asked for; a three-component output is all
+// three arrays or none.
 template <class T>
-BatchReport run_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
-                      const BatchOptions& options) {
-  check_call(pairs, out, options);
-  BatchReport report;
-  report.pairs = pairs.size;
-  report.isa = resolve_isa(options.isa);
-  report.iterations = options.iterations > 0 ? options.iterations
-                      : sizeof(T) == sizeof(float) ? default_iterations_float
-                                                   : default_iterations_double;
-  const std::size_t chunks = (pairs.size + chunk_pairs - 1) / chunk_pairs;
-  const int wanted = options.threads > 0 ? options.threads : omp_get_max_threads();
-  report.threads = int(std::min<std::size_t>(std::size_t(wanted), std::max<std::size_t>(chunks, 1)));
-  if (pairs.size == 0) return report;
+unsigned output_bits(const ContactOutputs<T>& out) {
+  unsigned bits = out.lambda ? kernels::with_lambda : 0;
+  auto triple = [&](T* const (&v)[3], unsigned bit, const char* name) {
+    const int given = (v[0] != nullptr) + (v[1] != nullptr) + (v[2] != nullptr);
+    if (given != 0 && given != 3)
+      throw std::invalid_argument(std::string("ContactOutputs::") + name +
+                                  " needs all three components or none");
+    if (given == 3) bits |= bit;
+  };
+  triple(out.contact_point, kernels::with_contact_point, "contact_point");
+  triple(out.normal, kernels::with_normal, "normal");
+  triple(out.gradient, kernels::with_gradient, "gradient");
+  return bits;
+}
 
-  const kernels::KernelTable& table = kernel_table(report.isa);
-  // Status scratch for callers who did not ask for statuses.
-  std::vector<Status> scratch(out.status ? 0 : pairs.size);
-  Status* const status = out.status ? out.status : scratch.data();
+// One pair in the scalar layout, in double: the reference path always runs
+// in double, also for float batches (a lane that failed in float gets the
+// better answer, rounded once to float).
+struct ScalarPair {
+  double r[3], q1[6], q2[6];
+};
+
+template <class T>
+ScalarPair scalar_pair(const PairBatchView<T>& pairs, std::size_t i) {
+  ScalarPair p;
+  for (int k = 0; k < 3; ++k) p.r[k] = pairs.r12[k][i];
+  for (int k = 0; k < 6; ++k) {
+    p.q1[k] = pairs.q1[k][i];
+    p.q2[k] = pairs.q2[k][i];
+  }
+  return p;
+}
+
+template <class T>
+kernels::PairSpan<T> span_at(const PairBatchView<T>& pairs, std::size_t begin) {
+  kernels::PairSpan<T> in;
+  for (int k = 0; k < 3; ++k) in.r12[k] = pairs.r12[k] + begin;
+  for (int k = 0; k < 6; ++k) {
+    in.q1[k] = pairs.q1[k] + begin;
+    in.q2[k] = pairs.q2[k] + begin;
+  }
+  return in;
+}
+
+// Per-thread memory for the kernels' kept lanes, 64-byte aligned.
+class ScratchArena {
+ public:
+  explicit ScratchArena(int threads)
+      : bytes_(kernels::scratch_bytes(chunk_pairs)),
+        storage_(new unsigned char[bytes_ * std::size_t(threads) + 64]) {}
+  kernels::Scratch for_thread(int t) const {
+    unsigned char* base = storage_.get();
+    base += (64 - reinterpret_cast<std::uintptr_t>(base) % 64) % 64;
+    return {base + bytes_ * std::size_t(t), chunk_pairs};
+  }
+
+ private:
+  std::size_t bytes_;
+  std::unique_ptr<unsigned char[]> storage_;
+};
+
+// Runs `solve_chunk(begin, n, scratch, counters, fallbacks)` over the chunks
+// in parallel and sums what the chunks counted into the report.
+template <class SolveChunk>
+void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk) {
+  const std::size_t chunks = (pairs + chunk_pairs - 1) / chunk_pairs;
+  const ScratchArena arena(report.threads);
+  std::uint64_t evaluations = 0, prefilter = 0, certificate = 0;
   std::size_t fallbacks = 0;
-  std::size_t counts[status_count] = {};
-
-#pragma omp parallel num_threads(report.threads) reduction(+ : fallbacks, counts[:status_count])
+#pragma omp parallel num_threads(report.threads) reduction(+ : evaluations, prefilter, certificate, fallbacks)
   {
+    const kernels::Scratch scratch = arena.for_thread(omp_get_thread_num());
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t c = 0; c < chunks; ++c) {
       const std::size_t begin = c * chunk_pairs;
-      const std::size_t n = std::min(chunk_pairs, pairs.size - begin);
-      kernels::PairSpan<T> in;
-      for (int k = 0; k < 3; ++k) in.r12[k] = pairs.r12[k] + begin;
-      for (int k = 0; k < 6; ++k) {
-        in.q1[k] = pairs.q1[k] + begin;
-        in.q2[k] = pairs.q2[k] + begin;
-      }
-      const kernels::ResultSpan<T> result{out.mu2 + begin, out.lambda ? out.lambda + begin : nullptr,
-                                          status + begin};
-      solve_span(table, in, result, n, report.iterations);
-
-      for (std::size_t i = begin; i < begin + n; ++i) {
-        if (status[i] == kernels::needs_fallback) {
-          // The reference path validates the input too: invalid pairs get
-          // their exact status here and are not counted as fallbacks.
-          const ContactResult<double> ref = reference_for_pair(pairs, i);
-          const bool solved = ref.status == Status::ok || ref.status == Status::not_converged;
-          fallbacks += solved;
-          out.mu2[i] = T(ref.mu2);
-          if (out.lambda) out.lambda[i] = T(ref.lambda);
-          status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
-        }
-        ++counts[static_cast<int>(status[i])];
-      }
+      kernels::ChunkCounters counters;
+      solve_chunk(begin, std::min(chunk_pairs, pairs - begin), scratch, counters, fallbacks);
+      evaluations += counters.lane_evaluations;
+      prefilter += counters.decided_by_prefilter;
+      certificate += counters.decided_by_certificate;
     }
   }
-
   report.fallbacks = fallbacks;
-  for (int s = 0; s < status_count; ++s) {
-    report.status_counts[s] = counts[s];
-    if (!is_valid(static_cast<Status>(s))) report.invalid += counts[s];
+  report.decided_by_prefilter = prefilter;
+  report.decided_by_certificate = certificate;
+  report.mean_evaluations = pairs ? double(evaluations) / double(pairs) : 0;
+}
+
+void count_statuses(const Status* status, std::size_t n, BatchReport& report) {
+  for (std::size_t i = 0; i < n; ++i) ++report.status_counts[static_cast<int>(status[i])];
+  for (int s = 0; s < status_count; ++s)
+    if (!is_valid(static_cast<Status>(s))) report.invalid += report.status_counts[s];
+}
+
+kernels::ChunkSettings chunk_settings(const BatchReport& report, const BatchOptions& options) {
+  kernels::ChunkSettings settings{};
+  settings.iterations = report.iterations;
+  settings.max_iterations = max_automatic_iterations;
+  settings.formulation = report.formulation;
+  settings.accuracy = options.accuracy;
+  return settings;
+}
+
+template <class T>
+kernels::FullKernel<T, T> full_kernel(const kernels::KernelTable& table, Precision precision) {
+  if constexpr (single_input<T>) {
+    return table.full_float;
+  } else {
+    switch (precision) {
+      case Precision::mixed: return table.full_mixed;
+      case Precision::single_precision: return table.full_single;
+      default: return table.full_double;
+    }
   }
+}
+
+template <class T>
+kernels::OverlapKernel<T> overlap_kernel(const kernels::KernelTable& table, Precision precision) {
+  if constexpr (single_input<T>) {
+    return table.overlap_float;
+  } else {
+    switch (precision) {
+      case Precision::mixed: return table.overlap_mixed;
+      case Precision::single_precision: return table.overlap_single;
+      default: return table.overlap_double;
+    }
+  }
+}
+
+// The reference path's answer for a pair the kernels left, with the outputs
+// asked for; returns whether it counts as a fallback (a valid pair the kernels
+// did not finish, as opposed to an invalid one).
+template <class T>
+bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
+                           Status* status, std::size_t i, unsigned bits) {
+  const ScalarPair p = scalar_pair(pairs, i);
+  const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+  out.mu2[i] = T(ref.mu2);
+  if (bits & kernels::with_lambda) out.lambda[i] = T(ref.lambda);
+  if (bits & ~unsigned(kernels::with_lambda)) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    ContactGeometry<double> g{{nan, nan, nan}, {nan, nan, nan}, {nan, nan, nan}};
+    if (ref.status == Status::ok) g = contact_geometry<double>(p.r, p.q1, p.q2, ref.lambda);
+    for (int k = 0; k < 3; ++k) {
+      if (bits & kernels::with_contact_point) out.contact_point[k][i] = T(g.contact_point[k]);
+      if (bits & kernels::with_normal) out.normal[k][i] = T(g.normal[k]);
+      if (bits & kernels::with_gradient) out.gradient[k][i] = T(g.gradient[k]);
+    }
+  }
+  status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
+  return ref.status == Status::ok || ref.status == Status::not_converged;
+}
+
+template <class T>
+BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
+                       const BatchOptions& options) {
+  BatchReport report = resolve<T>(options, pairs.size);
+  if (pairs.size == 0) return report;
+  check_pairs(pairs);
+  if (!out.mu2) throw std::invalid_argument("ContactOutputs::mu2 must not be null");
+  const unsigned bits = output_bits(out);
+  kernels::ChunkSettings settings = chunk_settings(report, options);
+  settings.outputs = bits;
+  const auto kernel = full_kernel<T>(kernel_table(report.isa), report.precision);
+
+  // Statuses are needed to find the lanes left to the reference path.
+  std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
+  Status* const status = out.status ? out.status : scratch_status.data();
+  run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+                                     kernels::ChunkCounters& counters, std::size_t& fallbacks) {
+    kernels::ResultSpan<T> result{out.mu2 + begin, out.lambda ? out.lambda + begin : nullptr,
+                                  status + begin, {}, {}, {}};
+    for (int k = 0; k < 3; ++k) {
+      if (bits & kernels::with_contact_point) result.contact_point[k] = out.contact_point[k] + begin;
+      if (bits & kernels::with_normal) result.normal[k] = out.normal[k] + begin;
+      if (bits & kernels::with_gradient) result.gradient[k] = out.gradient[k] + begin;
+    }
+    kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
+    for (std::size_t i = begin; i < begin + n; ++i)
+      if (status[i] == kernels::needs_fallback)
+        fallbacks += answer_with_reference(pairs, out, status, i, bits);
+  });
+  count_statuses(status, pairs.size, report);
+  return report;
+}
+
+template <class T>
+BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& out,
+                         const BatchOptions& options, double cutoff) {
+  BatchReport report = resolve<T>(options, pairs.size);
+  if (!(cutoff > 0) || !std::isfinite(cutoff))
+    throw std::invalid_argument("overlap_batch: cutoff must be positive and finite, got " +
+                                std::to_string(cutoff));
+  if (options.accuracy == Accuracy::high)
+    throw std::invalid_argument("overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");
+  if (pairs.size == 0) return report;
+  check_pairs(pairs);
+  if (!out.overlap) throw std::invalid_argument("OverlapOutputs::overlap must not be null");
+  kernels::ChunkSettings settings = chunk_settings(report, options);
+  settings.cutoff_mu2 = cutoff * cutoff;
+  const auto kernel = overlap_kernel<T>(kernel_table(report.isa), report.precision);
+
+  std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
+  Status* const status = out.status ? out.status : scratch_status.data();
+  run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+                                     kernels::ChunkCounters& counters, std::size_t& fallbacks) {
+    kernel(span_at(pairs, begin), {out.overlap + begin, status + begin}, n, settings, scratch,
+           counters);
+    for (std::size_t i = begin; i < begin + n; ++i) {
+      if (status[i] != kernels::needs_fallback) continue;
+      const ScalarPair p = scalar_pair(pairs, i);
+      const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+      out.overlap[i] = ref.status == Status::ok && ref.mu2 < settings.cutoff_mu2;
+      status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
+      fallbacks += ref.status == Status::ok || ref.status == Status::not_converged;
+    }
+  });
+  count_statuses(status, pairs.size, report);
+  for (std::size_t i = 0; i < pairs.size; ++i) report.overlapping += out.overlap[i];
   return report;
 }
 
@@ -134,12 +306,22 @@ BatchReport run_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& ou
 
 BatchReport contact_function_batch(const PairBatchView<double>& pairs,
                                    const ContactOutputs<double>& out, const BatchOptions& options) {
-  return run_batch(pairs, out, options);
+  return full_batch(pairs, out, options);
 }
 
 BatchReport contact_function_batch(const PairBatchView<float>& pairs,
                                    const ContactOutputs<float>& out, const BatchOptions& options) {
-  return run_batch(pairs, out, options);
+  return full_batch(pairs, out, options);
+}
+
+BatchReport overlap_batch(const PairBatchView<double>& pairs, const OverlapOutputs& out,
+                          const BatchOptions& options, double cutoff) {
+  return overlap_only(pairs, out, options, cutoff);
+}
+
+BatchReport overlap_batch(const PairBatchView<float>& pairs, const OverlapOutputs& out,
+                          const BatchOptions& options, double cutoff) {
+  return overlap_only(pairs, out, options, cutoff);
 }
 
 }  // namespace pwcontact

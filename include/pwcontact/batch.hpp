@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -55,12 +56,30 @@ struct PairBatchView {
   const T* q2[6] = {};
 };
 
-// Where the results go, `size` elements each. mu2 is required; lambda and
-// status may be null when not wanted (the report still counts statuses).
+// Where the results go, `size` elements each. mu2 is required; everything
+// else may be null when not wanted, and what is not wanted is not computed
+// (the kernels are specialised at compile time for the requested outputs).
+// The three-component outputs are all given (three arrays) or all null.
 template <class T>
 struct ContactOutputs {
   T* mu2 = nullptr;
-  T* lambda = nullptr;
+  T* lambda = nullptr;        // the maximiser lambda_0 of f (theory eq. 6)
+  Status* status = nullptr;
+  // x0 - c1: where the two ellipsoids, both scaled by mu about their centres,
+  // touch (eq. 9a: x0 - c1 = (1 - lambda) Q1 Q^-1 r12), relative to centre 1.
+  T* contact_point[3] = {};
+  // Unit normal at x0, outward of ellipsoid 1 (towards ellipsoid 2): along
+  // Q^-1 r12 (eq. 8).
+  T* normal[3] = {};
+  // d mu^2 / d r12 = 2 lambda (1 - lambda) Q^-1 r12 (envelope theorem).
+  T* gradient[3] = {};
+};
+
+// Where an overlap-only answer goes, `size` elements each: overlap[i] is 1
+// when mu < cutoff (mu^2 < cutoff^2), else 0; for invalid pairs it is 0 and
+// the status says why. overlap is required, status may be null.
+struct OverlapOutputs {
+  std::uint8_t* overlap = nullptr;
   Status* status = nullptr;
 };
 
@@ -98,41 +117,108 @@ extern template class PairBatch<float>;
 // ---------------------------------------------------------------------------
 // Solving
 
-// Fixed Newton iterations per lane when BatchOptions::iterations is 0,
-// chosen by measurement on random pairs (semi-axes in [0.5, 2]): the
-// smallest count that, with the convergence check and fallback, gives the
-// highest throughput (see README, "Choosing the iteration count").
-inline constexpr int default_iterations_double = 4;
-inline constexpr int default_iterations_float = 3;
+// The floating-point arithmetic of the iterations.
+enum class Precision {
+  automatic,         // that of the inputs: double for double pairs, single for float pairs
+  double_precision,  // double pairs only
+  single_precision,  // iterate and answer in float (double pairs are rounded to float)
+  mixed,             // double pairs only: iterate in float lanes (twice as many per
+                     // register), then finish with double Newton steps and a double
+                     // convergence check: double accuracy at nearly float speed
+};
+
+// How accurately the final mu^2 is evaluated.
+enum class Accuracy {
+  standard,  // plain double (or float): the floor is ~eps times the condition of Q
+  high,      // the last evaluation is refined once with an error-free residual
+             // (double-double), which removes the conditioning floor; double or
+             // mixed precision only
+};
+
+// The Newton iteration the lanes run (both safeguarded by the same bracket).
+enum class Formulation {
+  automatic,  // the measured best for the precision (see README, "The trade")
+  newton,     // Newton on g(lambda) = mu2^2 - mu1^2 (= -f'), in lambda
+  log_odds,   // Newton on ln(mu2^2 / mu1^2) in t = ln(lambda / (1 - lambda)):
+              // exact in one step for spheres, steadier for elongated shapes
+};
+
+// BatchOptions::iterations: 0 means automatic, any positive value a fixed count.
+inline constexpr int automatic_iterations = 0;
 
 struct BatchOptions {
-  int iterations = 0;        // fixed Newton iterations per lane; 0: the default above
+  // Automatic: every lane iterates until its convergence check passes, the
+  // lanes still running being regrouped into full SIMD registers between
+  // passes, up to max_automatic_iterations; what is left goes to the
+  // reference path. Fixed N: every lane runs exactly N evaluations, then the
+  // check, then the reference path for those that fail it.
+  int iterations = automatic_iterations;
   int threads = 0;           // OpenMP threads; 0: omp_get_max_threads()
   Isa isa = Isa::automatic;  // see resolve_isa
+  Precision precision = Precision::automatic;
+  Accuracy accuracy = Accuracy::standard;
+  Formulation formulation = Formulation::automatic;
 };
+
+// The automatic mode's cap on evaluations per lane.
+inline constexpr int max_automatic_iterations = 40;
 
 // What a batch call did.
 struct BatchReport {
   std::size_t pairs = 0;
-  std::size_t fallbacks = 0;  // valid lanes that missed the convergence check and were
-                              // recomputed by the reference path (status ok_fallback or
-                              // not_converged)
+  std::size_t fallbacks = 0;  // valid lanes that the kernels did not finish, recomputed
+                              // by the reference path (status ok_fallback or not_converged)
   std::size_t invalid = 0;    // pairs whose status is not valid (mu2 is NaN)
   std::size_t status_counts[status_count] = {};
-  Isa isa = Isa::automatic;   // the instruction set actually used
-  int iterations = 0;         // the fixed iteration count actually used
-  int threads = 0;            // the thread count actually used
+  // Overlap-only calls: pairs decided before any Newton evaluation (by the
+  // bounds from the radial and support extents), decided by a certificate
+  // after some evaluations, and found overlapping.
+  std::size_t decided_by_prefilter = 0;
+  std::size_t decided_by_certificate = 0;
+  std::size_t overlapping = 0;
+  double mean_evaluations = 0;  // (f, g, g') evaluations per pair in the kernels,
+                                // SIMD lanes included, reference path excluded
+  Isa isa = Isa::automatic;     // the instruction set actually used
+  int iterations = 0;           // the iteration setting used (0: automatic)
+  Precision precision = Precision::automatic;        // as resolved
+  Formulation formulation = Formulation::automatic;  // as resolved
+  int threads = 0;              // the thread count actually used
 };
 
-// mu^2 (and lambda, status) of every pair of the view. Results do not depend
-// on the thread count (bit for bit) and are within the reference path's
-// precision of it for every instruction set. Throws std::invalid_argument
-// for a malformed call (null pointers, negative counts).
+const char* precision_name(Precision p) noexcept;      // "auto", "double", "float", "mixed"
+const char* accuracy_name(Accuracy a) noexcept;        // "standard", "high"
+const char* formulation_name(Formulation f) noexcept;  // "auto", "newton", "log_odds"
+std::optional<Precision> parse_precision(std::string_view name) noexcept;
+std::optional<Accuracy> parse_accuracy(std::string_view name) noexcept;
+std::optional<Formulation> parse_formulation(std::string_view name) noexcept;
+
+// mu^2 (and whatever else `out` asks for) of every pair of the view.
+// Results do not depend on the thread count or on a pair's position in the
+// batch (bit for bit) and are within the reference path's precision of it
+// for every instruction set. Throws std::invalid_argument for a malformed
+// call (null pointers, negative counts, an option the input type does not
+// support).
 BatchReport contact_function_batch(const PairBatchView<double>& pairs,
                                    const ContactOutputs<double>& out,
                                    const BatchOptions& options = {});
 BatchReport contact_function_batch(const PairBatchView<float>& pairs,
                                    const ContactOutputs<float>& out,
                                    const BatchOptions& options = {});
+
+// Overlap only: whether mu < cutoff for every pair, decided with certificates
+// so that most pairs need few or no Newton evaluations: before any, the
+// radial extents along r12 bound mu^2 from above (they lie inside both
+// ellipsoids) and the support extents along r12 bound it from below (a
+// separating plane); after each, f(lambda) bounds mu^2 from below and the
+// tangents of the concave f at the bracket ends bound it from above. A pair
+// is decided when a bound clears cutoff^2 by more than its rounding error;
+// pairs still undecided when the automatic iterations end are decided by the
+// reference path. The answer agrees with mu^2 < cutoff^2 whenever
+// |mu^2 - cutoff^2| > 1e-9 cutoff^2 in double precision, for Q conditioned
+// up to ~1e8 (see README). cutoff must be positive and finite.
+BatchReport overlap_batch(const PairBatchView<double>& pairs, const OverlapOutputs& out,
+                          const BatchOptions& options = {}, double cutoff = 1);
+BatchReport overlap_batch(const PairBatchView<float>& pairs, const OverlapOutputs& out,
+                          const BatchOptions& options = {}, double cutoff = 1);
 
 }  // namespace pwcontact

@@ -168,6 +168,30 @@ T max_diagonal(const T q[6]) {
   return m;
 }
 
+// mu^2 is invariant under Q -> k^2 Q, r -> k r. The pair scaled by a power of
+// two (exact) so that the largest diagonal entry is O(1): no overflow or
+// underflow at extreme scales, and the factorisations see O(1) numbers.
+// r = 2^-exponent r12, Q = 2^-2 exponent Q.
+template <class T>
+struct ScaledPair {
+  T r[3], q1[6], q2[6];
+  int exponent = 0;
+
+  ScaledPair(const T r12[3], const T q1_in[6], const T q2_in[6]) {
+    using std::frexp;
+    using std::ldexp;
+    using std::sqrt;
+    const T largest = max_diagonal(q1_in) > max_diagonal(q2_in) ? max_diagonal(q1_in)
+                                                                 : max_diagonal(q2_in);
+    if (largest > 0) frexp(sqrt(largest), &exponent);
+    for (int k = 0; k < 3; ++k) r[k] = ldexp(r12[k], -exponent);
+    for (int k = 0; k < 6; ++k) {
+      q1[k] = ldexp(q1_in[k], -2 * exponent);
+      q2[k] = ldexp(q2_in[k], -2 * exponent);
+    }
+  }
+};
+
 }  // namespace detail
 
 // The contact function of two ellipsoids (c1, Q1) and (c2, Q2), with
@@ -176,8 +200,6 @@ template <class T>
 ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
                                   const ReferenceOptions& options = {}) {
   using std::abs;
-  using std::frexp;
-  using std::ldexp;
   using std::sqrt;
   const T nan = std::numeric_limits<T>::quiet_NaN();
   const T eps = std::numeric_limits<T>::epsilon();
@@ -186,20 +208,10 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
       !detail::all_finite(q2, 6))
     return {nan, nan, Status::non_finite_input, 0};
 
-  // mu^2 is invariant under Q -> k^2 Q, r -> k r. Scale by a power of two
-  // (exact) so that the largest diagonal entry is O(1): no overflow or
-  // underflow at extreme scales, and the factorisations below see O(1) numbers.
-  const T largest = detail::max_diagonal(q1) > detail::max_diagonal(q2)
-                        ? detail::max_diagonal(q1)
-                        : detail::max_diagonal(q2);
-  int exponent = 0;
-  if (largest > 0) frexp(sqrt(largest), &exponent);
-  T r[3], p1[6], p2[6];
-  for (int k = 0; k < 3; ++k) r[k] = ldexp(r12[k], -exponent);
-  for (int k = 0; k < 6; ++k) {
-    p1[k] = ldexp(q1[k], -2 * exponent);
-    p2[k] = ldexp(q2[k], -2 * exponent);
-  }
+  const detail::ScaledPair<T> scaled(r12, q1, q2);
+  const T* const r = scaled.r;
+  const T* const p1 = scaled.q1;
+  const T* const p2 = scaled.q2;
 
   const detail::Ldlt3<T> ldlt1(p1), ldlt2(p2);
   if (!ldlt1.positive_definite())
@@ -251,6 +263,47 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   return {nan, nan, Status::not_converged, options.max_iterations};
 }
 
+// What else the maximiser lambda gives (shared/notes/numerics.md), with
+// s = Q(lambda)^-1 r12:
+template <class T>
+struct ContactGeometry {
+  T contact_point[3];  // x0 - c1 = (1 - lambda) Q1 s (eq. 9a), where the two
+                       // ellipsoids scaled by mu touch, relative to centre 1
+  T normal[3];         // s / |s|: the unit normal at x0, outward of ellipsoid 1
+                       // (eq. 8); 0 for coincident centres, where it is undefined
+  T gradient[3];       // d mu^2 / d r12 = 2 lambda (1 - lambda) s (envelope theorem)
+};
+
+// The geometry at a given lambda (normally contact_function's), computed
+// with the same nondimensionalisation. The inputs must be valid (see
+// contact_function's statuses).
+template <class T>
+ContactGeometry<T> contact_geometry(const T r12[3], const T q1[6], const T q2[6], T lambda) {
+  using std::sqrt;
+  const detail::ScaledPair<T> p(r12, q1, q2);
+  const T mu = T(1) - lambda;
+  T q[6];
+  for (int k = 0; k < 6; ++k) q[k] = mu * p.q1[k] + lambda * p.q2[k];
+  const detail::Ldlt3<T> ldlt(q);
+  T y[3], z[3], s[3];
+  ldlt.forward(p.r, y);
+  z[0] = y[0] / ldlt.d0;
+  z[1] = y[1] / ldlt.d1;
+  z[2] = y[2] / ldlt.d2;
+  ldlt.backward(z, s);  // s = t Q^-1 r12 with t = 2^-exponent
+  T a[3];
+  detail::symmetric_times(p.q1, s, a);
+  const T norm = sqrt(detail::dot3(s, s));
+  ContactGeometry<T> out;
+  for (int k = 0; k < 3; ++k) {
+    using std::ldexp;
+    out.contact_point[k] = ldexp(mu * a[k], p.exponent);
+    out.normal[k] = norm > 0 ? s[k] / norm : T(0);
+    out.gradient[k] = ldexp(T(2) * lambda * mu * s[k], -p.exponent);
+  }
+  return out;
+}
+
 }  // namespace pwcontact
 
 namespace pwcontact {
@@ -261,4 +314,8 @@ extern template ContactResult<double> contact_function<double>(const double*, co
 extern template ContactResult<float> contact_function<float>(const float*, const float*,
                                                              const float*,
                                                              const ReferenceOptions&);
+extern template ContactGeometry<double> contact_geometry<double>(const double*, const double*,
+                                                                 const double*, double);
+extern template ContactGeometry<float> contact_geometry<float>(const float*, const float*,
+                                                               const float*, float);
 }  // namespace pwcontact

@@ -1,5 +1,6 @@
-// The batch kernel: the contact function of many pairs at once, one pair per
-// SIMD lane, with a fixed number of safeguarded Newton iterations.
+// The full-answer batch kernel: mu^2 (and lambda, the contact point, the
+// normal, the gradient on demand) of many pairs at once, one pair per SIMD
+// lane, with safeguarded Newton iterations.
 //
 // This body is written once and compiled once per instruction set, each time
 // in its own translation unit with its own flags (contact_sse2.cpp, ...).
@@ -8,332 +9,393 @@
 // replace another at link time. Nothing here calls into non-template inline
 // code of the library or the standard library for the same reason.
 //
-// The mathematics is the reference path's (include/pwcontact/reference.hpp),
-// written branch-free: lanes step together and diverge only through select.
-// Equation numbers refer to shared/seed/theory.txt.
+// A chunk is solved in passes. The first pass loads every pair, checks it,
+// nondimensionalises it, takes the initial guess and runs a few evaluations;
+// the last one of a pass decides, lane by lane, whether the lane is finished
+// (its convergence check). Lanes that are not are kept, packed into full
+// registers, and continue in the next pass (automatic iterations), or go to
+// the reference path (fixed iterations). Lanes step together and diverge
+// only through select. Equation numbers refer to shared/seed/theory.txt.
 #pragma once
-
-#include <xsimd/xsimd.hpp>
 
 #include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <type_traits>
+#include <utility>
 
 #include "kernels/kernel_api.hpp"
-
-// The loops over the U interleaved groups must be unrolled: only then do the
-// groups' instructions mix and their state live in registers.
-#define PWCONTACT_UNROLL _Pragma("GCC unroll 4")
+#include "kernels/lane_blocks.hpp"
+#include "kernels/simd_math.hpp"
 
 namespace pwcontact::kernels {
 
+// Evaluations of the first pass in automatic mode, by measurement: the
+// fixed count that is fastest on the random family (README, "Choosing the
+// iteration count"), so that automatic mode costs the same there; the few
+// lanes that are not finished then continue in packed registers instead of
+// going to the scalar reference path, which is what makes harder families
+// (elongated shapes) fast. A shorter first pass finishes fewer lanes per
+// evaluation than the packing costs (measured: 2 and 3 in double were 10 %
+// slower on random pairs).
 template <class T>
-struct KernelTolerance;
-// A lane is accepted when the gain in mu^2 that one more Newton step would
-// bring, g^2 / (2 g'), is below a few units in the last place of f.
-// Inputs whose largest diagonal entry lies in [safe_scale_low, safe_scale_high]
-// are solved as they are; others are first rescaled (see solve_groups).
-template <>
-struct KernelTolerance<double> {
-  static constexpr double predicted_gain = 4 * std::numeric_limits<double>::epsilon();
-  static constexpr double safe_scale_low = 0x1p-300, safe_scale_high = 0x1p300;
-  // A double lane that is ill-conditioned would gain nothing from the
-  // fallback, which runs in double too.
-  static constexpr bool checks_growth = false;
-};
-template <>
-struct KernelTolerance<float> {
-  static constexpr float predicted_gain = 4 * std::numeric_limits<float>::epsilon();
-  static constexpr float safe_scale_low = 0x1p-36f, safe_scale_high = 0x1p36f;
-  // A float lane whose factorisation shows element growth above this is
-  // recomputed in double: beyond it float can lose more than ~1e-5 (measured
-  // on the pw85 and log-uniform families; random pairs with semi-axes in
-  // [0.5, 2] stay below 6).
-  static constexpr bool checks_growth = true;
-  static constexpr float max_growth = 16;
-};
+inline constexpr int first_pass_evaluations = std::is_same<T, double>::value ? 3 : 2;
+// A mixed-precision solve: float steps from the radial guess in automatic
+// mode, then double evaluations (a Newton step from the float lambda and the
+// evaluation that checks it).
+inline constexpr int mixed_float_steps = 2;
+inline constexpr int mixed_double_evaluations = 1;
 
-// Q = L D L^T of a symmetric 3x3 matrix (6 numbers, eq. 3), with the
-// reciprocal pivots kept since every solve divides by them.
+// lambda for coincident centres, where every lambda is a maximiser (f = 0):
+// the one that is exact for spheres in the limit of small r, from the traces
+// (as the reference path).
 template <class B>
-struct BatchLdlt {
-  B inv_d0, inv_d1, inv_d2;
-  B l10, l20, l21;
-  B d0, d1, d2;
+PWCONTACT_INLINE B trace_lambda(const PairLanes<B>& p) {
+  const B t1 = xsimd::sqrt(p.q1[0] + p.q1[3] + p.q1[5]);
+  const B t2 = xsimd::sqrt(p.q2[0] + p.q2[3] + p.q2[5]);
+  return t1 / (t1 + t2);
+}
+
+// What the geometric outputs need of a group: s = Q^-1 r at the reported
+// lambda (0 for coincident centres), Q1, lambda and the scale factor t.
+template <class B>
+struct GeometryLanes {
+  B s[3];
+  B q1[6];
+  B lambda;
+  B scale;
 };
 
-template <class B>
-inline BatchLdlt<B> factor(const B a[6]) {
-  BatchLdlt<B> f;
-  f.d0 = a[0];
-  f.inv_d0 = B(1) / f.d0;
-  f.l10 = a[1] * f.inv_d0;
-  f.l20 = a[2] * f.inv_d0;
-  f.d1 = a[3] - f.l10 * a[1];
-  f.inv_d1 = B(1) / f.d1;
-  const B t = a[4] - f.l20 * a[1];
-  f.l21 = t * f.inv_d1;
-  f.d2 = a[5] - f.l20 * a[2] - f.l21 * t;
-  f.inv_d2 = B(1) / f.d2;
-  return f;
-}
-
-// y = L^-1 b
-template <class B>
-inline void forward(const BatchLdlt<B>& f, const B b[3], B y[3]) {
-  y[0] = b[0];
-  y[1] = b[1] - f.l10 * y[0];
-  y[2] = b[2] - f.l20 * y[0] - f.l21 * y[1];
-}
-
-// b^T Q^-1 b = sum y_i^2 / d_i, a sum of positive terms
-template <class B>
-inline B inverse_quadratic_form(const BatchLdlt<B>& f, const B b[3]) {
-  B y[3];
-  forward(f, b, y);
-  return y[0] * y[0] * f.inv_d0 + y[1] * y[1] * f.inv_d1 + y[2] * y[2] * f.inv_d2;
-}
-
-template <class B>
-inline void symmetric_times(const B a[6], const B x[3], B y[3]) {
-  y[0] = a[0] * x[0] + a[1] * x[1] + a[2] * x[2];
-  y[1] = a[1] * x[0] + a[3] * x[1] + a[4] * x[2];
-  y[2] = a[2] * x[0] + a[4] * x[1] + a[5] * x[2];
-}
-
-template <class B>
-inline B dot3(const B a[3], const B b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-template <class B>
-struct BatchResidual {
-  B f;   // f(lambda), eq. (11)
-  B g;   // mu2^2 - mu1^2 = -f'(lambda), eq. (13)
-  B dg;  // g'(lambda) >= 0
-  B growth;  // element growth of the factorisation, only when asked for
-};
-
-// Same formulas as detail::evaluate in the reference path; see there.
-// With `growth`, also the largest ratio of the magnitudes that cancel in a
-// pivot to the pivot itself: the factor by which rounding errors in Q(lambda)
-// are amplified in r^T Q^-1 r (measured: relative error of f below
-// ~100 growth eps, p99 ~3 growth eps).
-template <bool growth, class B>
-inline BatchResidual<B> evaluate(const B r[3], const B q1[6], const B q2[6], const B& lambda) {
-  const B mu = B(1) - lambda;
-  B q[6];
-  for (int k = 0; k < 6; ++k) q[k] = mu * q1[k] + lambda * q2[k];  // eq. (10)
-  const BatchLdlt<B> ldlt = factor(q);
-
-  B y[3], s[3];
-  forward(ldlt, r, y);
-  const B z0 = y[0] * ldlt.inv_d0, z1 = y[1] * ldlt.inv_d1, z2 = y[2] * ldlt.inv_d2;
-  s[2] = z2;  // s = L^-T z = Q^-1 r
-  s[1] = z1 - ldlt.l21 * s[2];
-  s[0] = z0 - ldlt.l10 * s[1] - ldlt.l20 * s[2];
-  const B rs = y[0] * z0 + y[1] * z1 + y[2] * z2;
-
-  B a[3], b[3], ya[3], yb[3];
-  symmetric_times(q1, s, a);
-  symmetric_times(q2, s, b);
-  forward(ldlt, a, ya);
-  forward(ldlt, b, yb);
-
-  BatchResidual<B> out;
-  out.f = lambda * mu * rs;
-  out.g = lambda * lambda * dot3(s, b) - mu * mu * dot3(s, a);
-  out.dg = B(2) * (ya[0] * yb[0] * ldlt.inv_d0 + ya[1] * yb[1] * ldlt.inv_d1 +
-                   ya[2] * yb[2] * ldlt.inv_d2);
-  if constexpr (growth) {
-    // d1 = q3 - l10 q1 and d2 = q5 - l20 q2 - l21 t with t = l21 d1.
-    const B g1 = (q[3] + xsimd::abs(ldlt.l10 * q[1])) * ldlt.inv_d1;
-    const B g2 = (q[5] + xsimd::abs(ldlt.l20 * q[2]) + ldlt.l21 * ldlt.l21 * ldlt.d1) * ldlt.inv_d2;
-    out.growth = xsimd::max(g1, g2);
-  }
-  return out;
-}
-
-// U independent SIMD groups solved side by side: one group's Newton step is a
-// long chain of dependent divisions and multiply-adds, so interleaving groups
-// keeps the floating-point units busy while each chain waits.
-template <class Arch, class T, int U>
-inline void solve_groups(const PairSpan<T>& in, const ResultSpan<T>& out, std::size_t first,
-                         int iterations) {
+// The contact point, normal and gradient asked for (Outputs).
+template <unsigned Outputs, class Arch, class T, class Out>
+PWCONTACT_INLINE void write_geometry(const ResultSpan<Out>& out, const LanePositions& at,
+                                     const GeometryLanes<xsimd::batch<T, Arch>>& g) {
   using B = xsimd::batch<T, Arch>;
-  using M = xsimd::batch_bool<T, Arch>;
-  constexpr std::size_t W = B::size;
-  const B zero(T(0)), one(T(1)), half(T(0.5));
-  const B nan(std::numeric_limits<T>::quiet_NaN());
-  const B tol(KernelTolerance<T>::predicted_gain);
+  const B mu = B(1) - g.lambda;
+  // The pair was scaled by t (r -> t r, Q -> t^2 Q), so Q^-1 r in the
+  // caller's units is t s, and (1 - lambda) Q1 Q^-1 r is (1 - lambda) Q1 s / t.
+  if constexpr ((Outputs & with_contact_point) != 0) {
+    B x[3];
+    symmetric_times(g.q1, g.s, x);
+    const B factor = mu / g.scale;
+    for (int k = 0; k < 3; ++k) write_lanes<Arch, T, Out>(out.contact_point[k], at, factor * x[k]);
+  }
+  if constexpr ((Outputs & with_normal) != 0) {
+    // Coincident centres have no normal: 0 there.
+    const B norm = xsimd::sqrt(dot3(g.s, g.s));
+    const B inverse = xsimd::select(norm > B(0), B(1) / norm, B(0));
+    for (int k = 0; k < 3; ++k) write_lanes<Arch, T, Out>(out.normal[k], at, g.s[k] * inverse);
+  }
+  if constexpr ((Outputs & with_gradient) != 0) {
+    const B factor = B(2) * g.lambda * mu * g.scale;
+    for (int k = 0; k < 3; ++k) write_lanes<Arch, T, Out>(out.gradient[k], at, factor * g.s[k]);
+  }
+}
 
-  B r[U][3], q1[U][6], q2[U][6];
-  B lambda[U], lo[U], hi[U];
-  M finite[U], pd1[U], pd2[U], coincident[U];
-  B lambda_coincident[U];
+// Selects the specialisation for the outputs asked for; out of line and fed
+// copies, so that asking for none costs the hot path nothing.
+template <class Arch, class T, class Out>
+__attribute__((noinline)) void write_geometry(const ResultSpan<Out> out, const LanePositions at,
+                                              const GeometryLanes<xsimd::batch<T, Arch>> g,
+                                              unsigned outputs) {
+  switch (outputs & geometry_outputs) {
+#define PWCONTACT_GEOMETRY_CASE(bits) \
+  case bits: write_geometry<bits, Arch, T, Out>(out, at, g); break;
+    PWCONTACT_GEOMETRY_CASE(2) PWCONTACT_GEOMETRY_CASE(4) PWCONTACT_GEOMETRY_CASE(6)
+    PWCONTACT_GEOMETRY_CASE(8) PWCONTACT_GEOMETRY_CASE(10) PWCONTACT_GEOMETRY_CASE(12)
+    PWCONTACT_GEOMETRY_CASE(14)
+#undef PWCONTACT_GEOMETRY_CASE
+  }
+}
 
-  PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-    const std::size_t i = first + std::size_t(u) * W;
-    for (int k = 0; k < 3; ++k) r[u][k] = B::load_unaligned(in.r12[k] + i);
-    for (int k = 0; k < 6; ++k) {
-      q1[u][k] = B::load_unaligned(in.q1[k] + i);
-      q2[u][k] = B::load_unaligned(in.q2[k] + i);
+// What a full-answer lane keeps between passes besides its pair.
+inline constexpr int full_state = 4;  // scale, lambda, lo, hi
+template <class T>
+using FullKept = KeptLanes<T, full_state>;
+
+// A block of U groups of lanes, solved for the full answer.
+template <class Arch, class T>
+class FullBlock : public LaneGroups<Arch, T> {
+  using Base = LaneGroups<Arch, T>;
+  using Base::at_, Base::pair_, Base::scale_, Base::lambda_, Base::lo_, Base::hi_, Base::live_,
+      Base::settings_;
+
+ public:
+  using typename Base::B;
+  using typename Base::M;
+  using Base::size, Base::U, Base::W;
+
+  FullBlock(const ChunkSettings& settings, ChunkCounters& counters, FullKept<T>& kept)
+      : Base(settings, counters), kept_(kept) {}
+
+  // A first pass's block, loaded from position `from` of `in` and answered at
+  // position `position` of the chunk (they differ for a padded tail), `real`
+  // pairs in it: checks, nondimensionalises, and starts from the radial guess.
+  template <class In>
+  PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position, std::size_t real) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      this->load(in, from, position, nullptr, real, u);
+      const PairLanes<B>& p = pair_[u];
+      // Initial guess exact for spheres: lambda = rho1 / (rho1 + rho2), rho_i
+      // the distance from centre i to its surface along r12, from
+      // s_i = r^T Qi^-1 r (f'(0) = s1, -f'(1) = s2; see the reference path):
+      // lambda = 1 / (1 + sqrt(s1 / s2)). A guess needs no precision, so the
+      // s_i come from adjugates and determinants (one division for both,
+      // instead of six for two factorisations); where round-off spoils them
+      // (very elongated shapes), the guess falls back to 1/2.
+      const Adjugate<B> adj1(p.q1), adj2(p.q2);
+      const B ratio = (adj1.form(p.r) * adj2.det) / (adj2.form(p.r) * adj1.det);
+      const B guess = B(1) / (B(1) + xsimd::sqrt(ratio));
+      lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+      lo_[u] = B(0);
+      hi_[u] = B(1);
+      // Positive definiteness from the leading principal minors (Sylvester).
+      live_[u] = this->real_lanes(u) & all_finite(p) & adj1.positive_definite(p.q1) &
+                 adj2.positive_definite(p.q2);
+      // Coincident centres: mu^2 = 0.
+      coincident_[u] = live_[u] & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+      lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
+  }
 
-    // The sum of the inputs is finite when they all are (a NaN or an infinity
-    // makes it NaN or infinite), and only rarely otherwise (overflow): a lane
-    // that fails this cheap test goes to the reference path, which decides.
-    B sum = r[u][0] + r[u][1] + r[u][2];
-    for (int k = 0; k < 6; ++k) sum += q1[u][k] + q2[u][k];
-    finite[u] = (sum - sum) == zero;
+  // The double block of a mixed-precision solve: starts from the lambda the
+  // float lanes reached (lambda_start, one per lane of the block; NaN where
+  // they failed), with the bracket [0, 1].
+  PWCONTACT_INLINE void start_from(const PairSpan<T>& in, std::size_t from, std::size_t position, std::size_t real,
+                  const T* lambda_start) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      this->load(in, from, position, nullptr, real, u);
+      const B start = B::load_unaligned(lambda_start + std::size_t(u) * W);
+      lambda_[u] = xsimd::select((start > B(0)) & (start < B(1)), start, B(0.5));
+      lo_[u] = B(0);
+      hi_[u] = B(1);
+      live_[u] = this->real_lanes(u) & all_finite(pair_[u]) &
+                 Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
+                 Adjugate<B>(pair_[u].q2).positive_definite(pair_[u].q2);
+      coincident_[u] = live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) &
+                       (pair_[u].r[2] == B(0));
+      lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
+    }
+  }
 
-    // Nondimensionalise by a power of two (exact): r -> r t, Q -> Q t^2, with
-    // t = 1 / 2^floor(log2 sqrt(max diagonal)); mu^2 is invariant. Only needed
-    // when some lane's scale is far from 1, where products of entries could
-    // overflow or underflow; the scaling is exact, so skipping it elsewhere
-    // changes no result.
-    const B largest = xsimd::max(xsimd::max(xsimd::max(q1[u][0], q1[u][3]), q1[u][5]),
-                                 xsimd::max(xsimd::max(q2[u][0], q2[u][3]), q2[u][5]));
-    const B safe_low(KernelTolerance<T>::safe_scale_low), safe_high(KernelTolerance<T>::safe_scale_high);
-    if (!xsimd::all((largest >= safe_low) & (largest <= safe_high))) {
-      const B infinity(std::numeric_limits<T>::infinity());
-      const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
-      const B t = xsimd::select((power > zero) & (power < infinity), one / power, one);
-      const B t2 = t * t;
-      for (int k = 0; k < 3; ++k) r[u][k] *= t;
-      for (int k = 0; k < 6; ++k) {
-        q1[u][k] *= t2;
-        q2[u][k] *= t2;
+  // A later pass's block: the kept lanes from position j on (count in all).
+  PWCONTACT_INLINE void resume(std::size_t j, std::size_t count) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      const std::size_t at = j + std::size_t(u) * W;
+      for (int k = 0; k < pair_components; ++k)
+        component(pair_[u], k) = B::load_unaligned(kept_.values[k] + at);
+      scale_[u] = B::load_unaligned(kept_.values[15] + at);
+      lambda_[u] = B::load_unaligned(kept_.values[16] + at);
+      lo_[u] = B::load_unaligned(kept_.values[17] + at);
+      hi_[u] = B::load_unaligned(kept_.values[18] + at);
+      at_[u] = {0, kept_.index + at, at < count ? (count - at < W ? count - at : W) : 0};
+      live_[u] = this->real_lanes(u);
+      coincident_[u] = B(0) != B(0);
+      lambda_coincident_[u] = B(0);
+    }
+  }
+
+  // Safeguarded steps, each one evaluation; a pass is some steps and finish().
+  PWCONTACT_INLINE void iterate(int steps) {
+    for (int it = 0; it < steps; ++it) {
+      PWCONTACT_UNROLL for (int u = 0; u < U; ++u) this->advance(evaluate(pair_[u], lambda_[u]), u);
+    }
+    this->count_evaluations(steps);
+  }
+
+  // The lambda the lanes reached, one per lane of the block, NaN where a
+  // lane is not live (the float part of a mixed-precision solve).
+  PWCONTACT_INLINE void store_lambda(double* target) const {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      const B lambda = xsimd::select(live_[u] & !coincident_[u], lambda_[u],
+                                     B(std::numeric_limits<T>::quiet_NaN()));
+      write_lanes<Arch, T, double>(target, {std::size_t(u) * W, nullptr, W}, lambda);
+    }
+  }
+
+  // The last evaluation of a pass: decides which lanes are finished, writes
+  // their answers, and keeps the others for the next pass (or leaves them to
+  // the reference path when `keep` is false).
+  template <class Out>
+  PWCONTACT_INLINE void finish(const ResultSpan<Out>& out, bool keep) {
+    this->count_evaluations(1);
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
+      const M newton = this->advance(e, u);
+      // Convergence check. Near the maximum f is a parabola in lambda, and
+      // one more Newton step would raise f by the gain g^2 / (2 g'). A lane is
+      // finished when that step stayed in the bracket (the model holds) and
+      // the gain is below corrected_gain f: the answer is then f + gain,
+      // whose error is third order, ~(step / scale of lambda) gain (measured
+      // at the double floor on the random, pw85 and log-uniform families up
+      // to aspect 1e3 for gains up to 1e-10 f; the tolerance is 1e-11 f).
+      // Otherwise (a bisection step, round-off noise in g near convergence)
+      // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
+      // ulp of f finishes it, with the answer f.
+      // (For Newton's formulation the step g / g' was just taken: the gain is
+      // half g times it, no second division.)
+      const B step = settings_.formulation == Formulation::newton ? e.lambda - lambda_[u] : e.g / e.dg;
+      const B gain = B(0.5) * e.g * step;
+      const M corrected = newton & (e.dg > B(0)) & (gain <= B(KernelTolerance<T>::corrected_gain) * e.f);
+      const M bounded = xsimd::abs(e.g) * (hi_[u] - lo_[u]) <= B(KernelTolerance<T>::bounded_gain) * e.f;
+      M done = corrected | bounded;
+      if constexpr (KernelTolerance<T>::checks_growth)
+        done = done & (growth(e.ldlt, e.q) <= B(KernelTolerance<T>::max_growth));
+      const M finished = live_[u] & (done | coincident_[u]);
+
+      Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}};
+      if (settings_.accuracy == Accuracy::high)
+        answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
+      answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
+      write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
+      write_answer(out, u, e, answer.s);
+      write_statuses<Arch, T>(out.status, at_[u], finished);
+
+      if (keep) {
+        B values[FullKept<T>::arrays];
+        for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);
+        values[15] = scale_[u];
+        values[16] = lambda_[u];
+        values[17] = lo_[u];
+        values[18] = hi_[u];
+        keep_lanes<Arch, T, full_state>(kept_, live_[u] & !finished, values, at_[u]);
       }
     }
+  }
 
-    const BatchLdlt<B> f1 = factor(q1[u]), f2 = factor(q2[u]);
-    pd1[u] = (f1.d0 > zero) & (f1.d1 > zero) & (f1.d2 > zero);
-    pd2[u] = (f2.d0 > zero) & (f2.d1 > zero) & (f2.d2 > zero);
-
-    // Initial guess exact for spheres: lambda = rho1 / (rho1 + rho2), rho_i the
-    // distance from centre i to its surface along r12 (see the reference path).
-    const B slope0 = inverse_quadratic_form(f1, r[u]);  // f'(0)
-    const B slope1 = inverse_quadratic_form(f2, r[u]);  // -f'(1)
-    const B w1 = xsimd::sqrt(slope1), w2 = xsimd::sqrt(slope0);
-    lambda[u] = w1 / (w1 + w2);
-    lo[u] = zero;
-    hi[u] = one;
-
-    // Coincident centres: mu^2 = 0, lambda from the traces (as the reference).
-    coincident[u] = !((slope0 > zero) & (slope1 > zero));
-    lambda_coincident[u] = nan;
-    if (xsimd::any(coincident[u])) {
-      const B tr1 = xsimd::sqrt(q1[u][0] + q1[u][3] + q1[u][5]);
-      const B tr2 = xsimd::sqrt(q2[u][0] + q2[u][3] + q2[u][5]);
-      lambda_coincident[u] = tr1 / (tr1 + tr2);
+ private:
+  // lambda, when asked for, and the geometric outputs, each only when asked
+  // for: those are computed out of the hot path by a specialisation per
+  // combination (write_geometry), from copies of the registers they need.
+  template <class Out>
+  PWCONTACT_INLINE void write_answer(const ResultSpan<Out>& out, int u, const Evaluation<B>& e,
+                                     const B (&s_evaluated)[3]) {
+    const B lambda = xsimd::select(coincident_[u], lambda_coincident_[u], lambda_[u]);
+    if (settings_.outputs & with_lambda) write_lanes<Arch, T, Out>(out.lambda, at_[u], lambda);
+    if (settings_.outputs & geometry_outputs) {
+      // s = Q^-1 r at the reported lambda, to first order in the step:
+      // ds/dlambda = -Q^-1 (Q2 - Q1) s = -L^-T D^-1 (L^-1 b - L^-1 a).
+      B dy[3], ds[3];
+      for (int k = 0; k < 3; ++k) dy[k] = e.yb[k] - e.ya[k];
+      backward(e.ldlt, dy, ds);
+      const B step = lambda - e.lambda;
+      GeometryLanes<B> g;
+      for (int k = 0; k < 3; ++k)
+        g.s[k] = xsimd::select(coincident_[u], B(0), s_evaluated[k] - step * ds[k]);
+      for (int k = 0; k < 6; ++k) g.q1[k] = pair_[u].q1[k];
+      g.lambda = lambda;
+      g.scale = scale_[u];
+      write_geometry<Arch, T, Out>(out, at_[u], g, settings_.outputs);
     }
   }
 
-  // iterations >= 1 (checked by the driver); initialised for the compiler's sake.
-  BatchResidual<B> last[U];
-  M newton[U];
-  PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-    last[u] = {nan, nan, nan, nan};
-    newton[u] = zero != zero;
-  }
-  for (int it = 0; it < iterations; ++it) {
-    const bool final = it + 1 == iterations;
-    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-      last[u] = final && KernelTolerance<T>::checks_growth
-                    ? evaluate<true>(r[u], q1[u], q2[u], lambda[u])
-                    : evaluate<false>(r[u], q1[u], q2[u], lambda[u]);
-      hi[u] = xsimd::select(last[u].g > zero, lambda[u], hi[u]);
-      lo[u] = xsimd::select(last[u].g < zero, lambda[u], lo[u]);
-      const B next = lambda[u] - last[u].g / last[u].dg;
-      newton[u] = (lo[u] <= next) & (next <= hi[u]);  // inclusive safeguard
-      lambda[u] = xsimd::select(newton[u], next, (lo[u] + hi[u]) * half);
-    }
-  }
+  FullKept<T>& kept_;
+  B lambda_coincident_[U];
+  M coincident_[U];
+};
 
-  PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-    const std::size_t i = first + std::size_t(u) * W;
-    const BatchResidual<B>& res = last[u];
-    // Convergence check: the predicted gain of one more Newton step,
-    // g^2 / (2 g'), is below tolerance, and either the last Newton step stayed
-    // in the bracket (the quadratic model holds) or the rigorous concavity
-    // bound mu^2 - f <= |g| (hi - lo) is below tolerance too.
-    const B bound = tol * res.f;
-    M converged = (res.dg > zero) & (half * res.g * res.g <= bound * res.dg) &
-                  (newton[u] | (xsimd::abs(res.g) * (hi[u] - lo[u]) <= bound));
-    if constexpr (KernelTolerance<T>::checks_growth)
-      converged = converged & (res.growth <= B(KernelTolerance<T>::max_growth));
-    // Everything else, invalid input included, is the reference path's to
-    // answer: it validates the input and assigns the exact status.
-    const M accepted = finite[u] & pd1[u] & pd2[u] & (converged | coincident[u]);
-    xsimd::select(coincident[u], zero, res.f).store_unaligned(out.mu2 + i);
-    if (out.lambda)
-      xsimd::select(coincident[u], lambda_coincident[u], lambda[u]).store_unaligned(out.lambda + i);
-    bool lanes[W];
-    accepted.store_unaligned(lanes);
-    for (std::size_t l = 0; l < W; ++l) out.status[i + l] = lanes[l] ? Status::ok : needs_fallback;
+// A block of the first pass: `first` evaluations from the radial guess.
+// One function per kind of block, so that the block's code exists once and
+// its state stays in registers (a block's steps inlined into each other).
+template <class Arch, class T, class In, class Out>
+__attribute__((noinline)) void first_pass_block(const PairSpan<In>& span, std::size_t from,
+                                                std::size_t position, std::size_t real, int first,
+                                                bool keep, const ResultSpan<Out>& out,
+                                                const ChunkSettings& settings,
+                                                ChunkCounters& counters, FullKept<T>& kept) {
+  FullBlock<Arch, T> block(settings, counters, kept);
+  block.start(span, from, position, real);
+  block.iterate(first - 1);
+  block.finish(out, keep);
+}
+
+// A block of a mixed-precision solve: float lanes (twice as many per
+// register) take the first steps from the radial guess, then the same pairs,
+// reloaded from cache as two blocks of double lanes, take it from there with
+// the double convergence check. One pass over memory.
+template <class Arch>
+__attribute__((noinline)) void mixed_block(const PairSpan<double>& span, std::size_t from,
+                                           std::size_t position, std::size_t real, int float_steps,
+                                           bool keep, const ResultSpan<double>& out,
+                                           const ChunkSettings& settings, ChunkCounters& counters,
+                                           FullKept<double>& kept, FullKept<float>& never_kept) {
+  constexpr std::size_t half = FullBlock<Arch, double>::size;
+  static_assert(FullBlock<Arch, float>::size == 2 * half);
+  alignas(64) double lambda_start[2 * half];
+  {
+    FullBlock<Arch, float> lanes(settings, counters, never_kept);  // they only hand lambda over
+    lanes.start(span, from, position, real);
+    lanes.iterate(float_steps);
+    lanes.store_lambda(lambda_start);
+  }
+  for (std::size_t h = 0; h < 2 && h * half < real; ++h) {
+    FullBlock<Arch, double> block(settings, counters, kept);
+    block.start_from(span, from + h * half, position + h * half,
+                     real - h * half < half ? real - h * half : half, lambda_start + h * half);
+    block.iterate(mixed_double_evaluations - 1);
+    block.finish(out, keep);
   }
 }
 
-// Groups interleaved per instruction set, by measurement (1M random pairs,
-// one thread): AVX-512's 32 registers hold three groups' state (U = 3 is
-// 3-4 % faster than 2, U = 1 is 12 % slower); with 16 registers, two.
+// A block of a later pass: kept lanes from position j (count in all).
+template <class Arch, class T, class Out>
+__attribute__((noinline)) void later_pass_block(std::size_t j, std::size_t count, bool keep,
+                                                const ResultSpan<Out>& out,
+                                                const ChunkSettings& settings,
+                                                ChunkCounters& counters, FullKept<T>& kept) {
+  FullBlock<Arch, T> block(settings, counters, kept);
+  block.resume(j, count);
+  block.finish(out, keep);
+}
+
+// The passes after the first, in automatic mode: the kept lanes, packed,
+// one evaluation per pass, until none is left or the cap is reached.
+template <class Arch, class T, class Out>
+void later_passes(FullKept<T>& kept, const ResultSpan<Out>& out, int done,
+                  const ChunkSettings& settings, ChunkCounters& counters) {
+  constexpr std::size_t size = FullBlock<Arch, T>::size;
+  while (kept.count > 0 && done < settings.max_iterations) {
+    const std::size_t count = kept.count;
+    kept.count = 0;  // packed in place: a block is read before anything is written over it
+    ++done;
+    for (std::size_t j = 0; j < count; j += size)
+      later_pass_block<Arch, T, Out>(j, count, done < settings.max_iterations, out, settings,
+                                     counters, kept);
+  }
+}
+
+// Full answer, arithmetic T, pairs In, results Out (float lanes on double
+// pairs round them once on loading and widen the results on writing).
+template <class Arch, class T, class In, class Out>
+void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t n,
+                const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
+  FullKept<T> kept(scratch, 0);
+  const bool automatic = settings.iterations == automatic_iterations;
+  const int first = automatic ? first_pass_evaluations<T> : settings.iterations;
+  const bool keep = automatic && first < settings.max_iterations;
+  for_each_block<FullBlock<Arch, T>::size>(
+      in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+        first_pass_block<Arch, T, In, Out>(span, from, position, real, first, keep, out, settings,
+                                           counters, kept);
+      });
+  if (automatic) later_passes<Arch, T>(kept, out, first, settings, counters);
+}
+
+// Mixed precision (see mixed_block): the answer has double accuracy.
 template <class Arch>
-inline constexpr int interleaved_groups = std::is_base_of<xsimd::avx512f, Arch>::value ? 3 : 2;
-
-// The whole span in blocks of U groups, the last block padded into a local
-// buffer so that nothing is read or written past n. Every pair goes through
-// the same instantiation: the compiler may fuse multiply-adds differently in
-// differently shaped code, and a pair's result must not depend on where it
-// sits in the batch.
-template <class Arch, class T>
-void solve_span(const PairSpan<T>& in, const ResultSpan<T>& out, std::size_t n, int iterations) {
-  constexpr int U = interleaved_groups<Arch>;
-  constexpr std::size_t block = U * xsimd::batch<T, Arch>::size;
-  std::size_t i = 0;
-  for (; i + block <= n; i += block) solve_groups<Arch, T, U>(in, out, i, iterations);
-  if (i == n) return;
-
-  // The missing lanes repeat the first pair of the tail, so they hold a valid
-  // problem and cost nothing special.
-  const std::size_t rest = n - i;
-  alignas(64) T buffer[15][block];
-  alignas(64) T mu2[block], lambda[block];
-  Status status[block];
-  PairSpan<T> padded;
-  for (int k = 0; k < 15; ++k) {
-    const T* source = k < 3 ? in.r12[k] : k < 9 ? in.q1[k - 3] : in.q2[k - 9];
-    for (std::size_t l = 0; l < block; ++l) buffer[k][l] = source[i + (l < rest ? l : 0)];
-    if (k < 3) padded.r12[k] = buffer[k];
-    else if (k < 9) padded.q1[k - 3] = buffer[k];
-    else padded.q2[k - 9] = buffer[k];
-  }
-  const ResultSpan<T> local{mu2, out.lambda ? lambda : nullptr, status};
-  solve_groups<Arch, T, U>(padded, local, 0, iterations);
-  for (std::size_t l = 0; l < rest; ++l) {
-    out.mu2[i + l] = mu2[l];
-    if (out.lambda) out.lambda[i + l] = lambda[l];
-    out.status[i + l] = status[l];
-  }
+void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out, std::size_t n,
+                      const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
+  FullKept<double> kept(scratch, 0);
+  FullKept<float> never_kept(scratch, 0);
+  const bool automatic = settings.iterations == automatic_iterations;
+  const int float_steps = automatic ? mixed_float_steps : settings.iterations;
+  const bool keep = automatic && mixed_double_evaluations < settings.max_iterations;
+  for_each_block<FullBlock<Arch, float>::size>(
+      in, n, [&](const PairSpan<double>& span, std::size_t from, std::size_t position, std::size_t real) {
+        mixed_block<Arch>(span, from, position, real, float_steps, keep, out, settings, counters, kept,
+                          never_kept);
+      });
+  if (automatic) later_passes<Arch, double>(kept, out, mixed_double_evaluations, settings, counters);
 }
 
 }  // namespace pwcontact::kernels
-
-// Defines the KernelTable of one instruction set; used once in each per-ISA file.
-#define PWCONTACT_DEFINE_KERNEL_TABLE(table, arch, label)                                  \
-  namespace pwcontact::kernels {                                                          \
-  namespace {                                                                             \
-  void solve_double_##table(const PairSpan<double>& in, const ResultSpan<double>& out,   \
-                            std::size_t n, int iterations) {                              \
-    solve_span<arch, double>(in, out, n, iterations);                                     \
-  }                                                                                       \
-  void solve_float_##table(const PairSpan<float>& in, const ResultSpan<float>& out,      \
-                           std::size_t n, int iterations) {                               \
-    solve_span<arch, float>(in, out, n, iterations);                                      \
-  }                                                                                       \
-  }                                                                                       \
-  const KernelTable kernel_table_##table = {                                             \
-      label, int(xsimd::batch<double, arch>::size), int(xsimd::batch<float, arch>::size), \
-      &solve_double_##table, &solve_float_##table};                                       \
-  }

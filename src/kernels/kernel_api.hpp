@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "pwcontact/batch.hpp"
 #include "pwcontact/status.hpp"
 
 namespace pwcontact::kernels {
@@ -18,31 +19,94 @@ struct PairSpan {
   const T* q2[6];
 };
 
-// SoA output; lambda may be null (not wanted). mu2 and status are required.
+// Which optional outputs a full-answer kernel computes: the kernels are
+// specialised for each combination, so that what is not asked for costs nothing.
+enum OutputBits : unsigned {
+  with_lambda = 1,
+  with_contact_point = 2,
+  with_normal = 4,
+  with_gradient = 8,
+};
+inline constexpr unsigned output_combinations = 16;
+inline constexpr unsigned geometry_outputs = with_contact_point | with_normal | with_gradient;
+
+// SoA output of a full answer; mu2 and status are required, the rest
+// follows the output bits of the call.
 template <class T>
 struct ResultSpan {
   T* mu2;
   T* lambda;
   Status* status;
+  T* contact_point[3];
+  T* normal[3];
+  T* gradient[3];
 };
 
-// Written by the kernels for every lane they do not accept: lanes that missed
-// their convergence check, and lanes whose input failed the kernel's cheap
-// validity tests. The driver recomputes those pairs with the reference path,
-// which validates the input and assigns the exact status.
+// SoA output of an overlap-only answer.
+struct OverlapSpan {
+  std::uint8_t* overlap;
+  Status* status;
+};
+
+// Written by the kernels for every lane they do not finish: lanes that missed
+// their convergence check (or stayed undecided), and lanes whose input failed
+// the kernels' cheap validity tests. The driver recomputes those pairs with
+// the reference path, which validates the input and assigns the exact status.
 inline constexpr Status needs_fallback = static_cast<Status>(0xFF);
 
-// What one instruction set offers. `solve_*` handle any n (tails included,
-// without reading or writing past n) with a fixed number of Newton iterations,
-// and write status ok or needs_fallback.
+// How a chunk is solved; everything resolved by the driver (no "automatic").
+struct ChunkSettings {
+  int iterations;          // fixed count, or 0 for automatic
+  int max_iterations;      // automatic: cap on evaluations per lane
+  Formulation formulation;  // newton or log_odds
+  Accuracy accuracy;
+  unsigned outputs;        // OutputBits (full answer)
+  double cutoff_mu2;       // overlap: the threshold on mu^2
+};
+
+// What a chunk's kernels did, summed by the driver.
+struct ChunkCounters {
+  std::uint64_t lane_evaluations = 0;  // SIMD lanes times evaluations, padding excluded
+  std::uint64_t decided_by_prefilter = 0;
+  std::uint64_t decided_by_certificate = 0;
+};
+
+// Per-thread memory the kernels keep lanes in between passes: at least
+// scratch_bytes(chunk) bytes, 64-byte aligned.
+inline constexpr std::size_t scratch_values_per_pair = 48;  // of the widest type, double
+inline constexpr std::size_t scratch_padding_pairs = 64;    // a padded block beyond the chunk
+inline constexpr std::size_t scratch_bytes(std::size_t chunk) {
+  return (chunk + scratch_padding_pairs) * scratch_values_per_pair * sizeof(double);
+}
+struct Scratch {
+  void* memory;
+  std::size_t capacity;  // pairs it was sized for
+};
+
+template <class In, class Out>
+using FullKernel = void (*)(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t n,
+                            const ChunkSettings& settings, const Scratch& scratch,
+                            ChunkCounters& counters);
+template <class In>
+using OverlapKernel = void (*)(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
+                               const ChunkSettings& settings, const Scratch& scratch,
+                               ChunkCounters& counters);
+
+// What one instruction set offers. Every kernel handles any n up to the
+// scratch capacity (tails included, without reading or writing past n) and
+// writes status ok or needs_fallback.
 struct KernelTable {
   const char* name;
   int lanes_double;
   int lanes_float;
-  void (*solve_double)(const PairSpan<double>& in, const ResultSpan<double>& out,
-                       std::size_t n, int iterations);
-  void (*solve_float)(const PairSpan<float>& in, const ResultSpan<float>& out,
-                      std::size_t n, int iterations);
+  FullKernel<double, double> full_double;        // double arithmetic
+  FullKernel<double, double> full_mixed;         // float iterations, double finish
+  FullKernel<double, double> full_single;        // float arithmetic on double pairs
+  FullKernel<float, float> full_float;           // float arithmetic on float pairs
+  OverlapKernel<double> overlap_double;
+  OverlapKernel<double> overlap_mixed;           // float certificates, double for the rest
+  OverlapKernel<double> overlap_single;
+  OverlapKernel<float> overlap_float;
 };
 
 extern const KernelTable kernel_table_sse2;

@@ -1,0 +1,379 @@
+// Blocks of lanes: loading pairs into SIMD registers (from the caller's arrays
+// or from the lanes kept between passes), nondimensionalising them, and
+// keeping the lanes that are not finished for the next pass.
+//
+// A block is U SIMD groups of W lanes, solved side by side: one group's
+// Newton step is a long chain of dependent divisions and multiply-adds, so
+// interleaving groups keeps the floating-point units busy while each chain
+// waits. Every function is a template on the architecture (see
+// contact_kernel.hpp for why).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+
+#include "kernels/kernel_api.hpp"
+#include "kernels/simd_math.hpp"
+
+// The loops over the U interleaved groups must be unrolled: only then do the
+// groups' instructions mix and their state live in registers (GCC otherwise
+// keeps them rolled; measured 3-4 %).
+#define PWCONTACT_UNROLL _Pragma("GCC unroll 4")
+
+namespace pwcontact::kernels {
+
+// Groups interleaved per instruction set, by measurement (1M random pairs,
+// one thread): AVX-512's 32 registers hold three groups' state (U = 3 is
+// 3-4 % faster than 2, U = 1 is 12 % slower); with 16 registers, two.
+template <class Arch>
+inline constexpr int interleaved_groups = is_avx512<Arch> ? 3 : 2;
+
+template <class T>
+struct KernelTolerance;
+template <>
+struct KernelTolerance<double> {
+  // The convergence check's tolerances on the gain of one more Newton step,
+  // relative to f (see FullBlock::finish): with the second-order correction,
+  // and on the rigorous bound without it.
+  static constexpr double corrected_gain = 1e-11;
+  static constexpr double bounded_gain = 4 * std::numeric_limits<double>::epsilon();
+  // Inputs whose largest diagonal entry lies in this range are solved as
+  // they are; others are first rescaled.
+  static constexpr double safe_scale_low = 0x1p-300, safe_scale_high = 0x1p300;
+  // A double lane that is ill-conditioned would gain nothing from the
+  // fallback, which runs in double too.
+  static constexpr bool checks_growth = false;
+  static constexpr double max_growth = 0;
+};
+template <>
+struct KernelTolerance<float> {
+  // (float: measured at the float floor for gains up to 1e-5 f on random pairs)
+  static constexpr float corrected_gain = 1e-5f;
+  static constexpr float bounded_gain = 4 * std::numeric_limits<float>::epsilon();
+  static constexpr float safe_scale_low = 0x1p-36f, safe_scale_high = 0x1p36f;
+  // A float lane whose factorisation shows element growth above this is
+  // finished in double: beyond it float can lose more than ~1e-5 (measured on
+  // the pw85 and log-uniform families; random pairs with semi-axes in [0.5, 2]
+  // stay below 6).
+  static constexpr bool checks_growth = true;
+  static constexpr float max_growth = 16;
+};
+
+// The 15 numbers of a pair in order: r12 x y z, q1[0..5], q2[0..5].
+inline constexpr int pair_components = 15;
+
+template <class T>
+PWCONTACT_INLINE const T* component(const PairSpan<T>& in, int k) {
+  return k < 3 ? in.r12[k] : k < 9 ? in.q1[k - 3] : in.q2[k - 9];
+}
+
+template <class B>
+PWCONTACT_INLINE B& component(PairLanes<B>& p, int k) {
+  return k < 3 ? p.r[k] : k < 9 ? p.q1[k - 3] : p.q2[k - 9];
+}
+
+template <class B>
+PWCONTACT_INLINE const B& component(const PairLanes<B>& p, int k) {
+  return k < 3 ? p.r[k] : k < 9 ? p.q1[k - 3] : p.q2[k - 9];
+}
+
+// Lanes kept between passes, in the scratch memory: the nondimensionalised
+// pair and `state` more numbers per lane (the bracket, lambda, ...), and
+// where the pair sits in the chunk. Arrays of capacity + padding elements.
+template <class T, int State>
+struct KeptLanes {
+  static constexpr int arrays = pair_components + State;
+  T* values[arrays];  // the pair's 15 components, then the state
+  std::uint32_t* index;
+  std::size_t count = 0;
+
+  KeptLanes(const Scratch& scratch, std::size_t first_array) {
+    const std::size_t stride = scratch.capacity + scratch_padding_pairs;
+    T* base = static_cast<T*>(scratch.memory) + first_array * stride;
+    for (int k = 0; k < arrays; ++k) values[k] = base + std::size_t(k) * stride;
+    index = reinterpret_cast<std::uint32_t*>(base + std::size_t(arrays) * stride);
+  }
+  // Arrays of T the kept lanes occupy (the index takes one).
+  static constexpr std::size_t footprint = arrays + 1;
+  static_assert(footprint <= scratch_values_per_pair);
+};
+
+// The largest diagonal entry of Q1 and Q2, for nondimensionalising.
+template <class B>
+PWCONTACT_INLINE B largest_diagonal(const PairLanes<B>& p) {
+  return xsimd::max(xsimd::max(xsimd::max(p.q1[0], p.q1[3]), p.q1[5]),
+                    xsimd::max(xsimd::max(p.q2[0], p.q2[3]), p.q2[5]));
+}
+
+// Nondimensionalises by a power of two (exact): r -> r t, Q -> Q t^2 with
+// t = 1 / 2^floor(log2 sqrt(largest diagonal)); mu^2 is invariant. Only done
+// when some lane's scale is far from 1, where products of entries could
+// overflow or underflow: the scaling is exact, so skipping it elsewhere
+// changes no result. Returns t (1 where not scaled).
+template <class B>
+PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p) {
+  using T = typename B::value_type;
+  const B largest = largest_diagonal(p);
+  const B low(KernelTolerance<T>::safe_scale_low), high(KernelTolerance<T>::safe_scale_high);
+  if (xsimd::all((largest >= low) & (largest <= high))) return B(1);
+  const B infinity(std::numeric_limits<T>::infinity());
+  const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
+  const B t = xsimd::select((power > B(0)) & (power < infinity), B(1) / power, B(1));
+  const B t2 = t * t;
+  for (int k = 0; k < 3; ++k) p.r[k] *= t;
+  for (int k = 0; k < 6; ++k) {
+    p.q1[k] *= t2;
+    p.q2[k] *= t2;
+  }
+  return t;
+}
+
+// The sum of the inputs is finite when they all are (a NaN or an infinity
+// makes it NaN or infinite), and only rarely otherwise (overflow): a lane
+// that fails this cheap test goes to the reference path, which decides.
+template <class B>
+PWCONTACT_INLINE auto all_finite(const PairLanes<B>& p) {
+  B sum = p.r[0] + p.r[1] + p.r[2];
+  for (int k = 0; k < 6; ++k) sum += p.q1[k] + p.q2[k];
+  return (sum - sum) == B(0);
+}
+
+// Loads W pairs from the caller's arrays at position i into T lanes,
+// converting double pairs to float lanes when T is float (two double
+// registers per float register); nondimensionalises in the input's type,
+// before any narrowing, so that extreme scales survive it.
+template <class Arch, class T, class In>
+PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLanes<xsimd::batch<T, Arch>>& p,
+                       xsimd::batch<T, Arch>& scale) {
+  using B = xsimd::batch<T, Arch>;
+  if constexpr (std::is_same<T, In>::value) {
+    for (int k = 0; k < pair_components; ++k)
+      component(p, k) = B::load_unaligned(component(in, k) + i);
+    scale = nondimensionalise(p);
+  } else {
+    static_assert(std::is_same<T, float>::value && std::is_same<In, double>::value);
+    using D = xsimd::batch<double, Arch>;
+    constexpr std::size_t half = D::size;
+    PairLanes<D> lo, hi;
+    for (int k = 0; k < pair_components; ++k) {
+      component(lo, k) = D::load_unaligned(component(in, k) + i);
+      component(hi, k) = D::load_unaligned(component(in, k) + i + half);
+    }
+    const D scale_lo = nondimensionalise(lo), scale_hi = nondimensionalise(hi);
+    for (int k = 0; k < pair_components; ++k)
+      component(p, k) = narrow<Arch>(component(lo, k), component(hi, k));
+    scale = narrow<Arch>(scale_lo, scale_hi);
+  }
+}
+
+// Copies the last, partial block of a span into a padded local buffer whose
+// missing lanes repeat the first pair of the tail (a valid problem that costs
+// nothing special), so that nothing is read past the end.
+template <class In, std::size_t Block>
+struct PaddedTail {
+  alignas(64) In buffer[pair_components][Block];
+  PairSpan<In> span;
+
+  PaddedTail(const PairSpan<In>& in, std::size_t first, std::size_t rest) {
+    for (int k = 0; k < pair_components; ++k) {
+      const In* source = component(in, k);
+      for (std::size_t l = 0; l < Block; ++l) buffer[k][l] = source[first + (l < rest ? l : 0)];
+      if (k < 3) span.r12[k] = buffer[k];
+      else if (k < 9) span.q1[k - 3] = buffer[k];
+      else span.q2[k - 9] = buffer[k];
+    }
+  }
+};
+
+// 0, 1, 2, ... in static storage: loading them is cheaper than building
+// them lane by lane on the stack, which stalls the load (store forwarding
+// cannot combine many small stores into one wide load).
+template <class T>
+alignas(64) inline constexpr T lane_numbers[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+
+// Where the lanes of one group go in the outputs: W consecutive positions
+// from `base`, or the positions listed in `index`; `real` of them (the rest
+// is padding).
+struct LanePositions {
+  std::size_t base;
+  const std::uint32_t* index;  // null: consecutive
+  std::size_t real;
+
+  std::size_t operator[](std::size_t l) const { return index ? index[l] : base + l; }
+};
+
+// Appends the lanes of one group selected by `keep` to the kept lanes, given
+// copies of the group's registers in the kept arrays' order (copies, so that
+// no register's address escapes and the compiler keeps them in registers)
+// and the lanes' positions:
+// AVX-512 compresses them with one masked store per array, other
+// instruction sets copy lane by lane.
+template <class Arch, class T, int State>
+PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_bool<T, Arch>& keep,
+                       const xsimd::batch<T, Arch>* values, const LanePositions& at) {
+  using B = xsimd::batch<T, Arch>;
+  constexpr std::size_t W = B::size;
+  constexpr int arrays = KeptLanes<T, State>::arrays;
+  const std::size_t first = kept.count;
+  if (xsimd::none(keep)) return;
+  if constexpr (is_avx512<Arch>) {
+    // Compress in a register and store the whole register: the kept arrays
+    // have room past their end, and Zen 4 microcodes compress-to-memory.
+    const auto mask = keep.data;
+    for (int k = 0; k < arrays; ++k) {
+      if constexpr (std::is_same<T, double>::value)
+        _mm512_storeu_pd(kept.values[k] + first, _mm512_maskz_compress_pd(mask, values[k]));
+      else
+        _mm512_storeu_ps(kept.values[k] + first, _mm512_maskz_compress_ps(mask, values[k]));
+    }
+    // Positions: consecutive from a base, or listed; only kept lanes are
+    // real, so reading a full register of listed positions stays in the array.
+    if constexpr (std::is_same<T, double>::value) {
+      const __m256i idx =
+          at.index ? _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at.index))
+                   : _mm256_add_epi32(_mm256_set1_epi32(int(at.base)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(kept.index + first),
+                          _mm256_maskz_compress_epi32(mask, idx));
+    } else {
+      const __m512i idx =
+          at.index ? _mm512_loadu_si512(at.index)
+                   : _mm512_add_epi32(_mm512_set1_epi32(int(at.base)),
+                                      _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15));
+      _mm512_storeu_si512(kept.index + first, _mm512_maskz_compress_epi32(mask, idx));
+    }
+    kept.count += std::size_t(__builtin_popcount(unsigned(mask)));
+  } else {
+    bool lanes[W];
+    keep.store_unaligned(lanes);
+    alignas(64) T tmp[arrays][W];
+    for (int k = 0; k < arrays; ++k) values[k].store_aligned(tmp[k]);
+    std::size_t c = first;
+    for (std::size_t l = 0; l < W; ++l) {
+      if (!lanes[l]) continue;
+      for (int k = 0; k < arrays; ++k) kept.values[k][c] = tmp[k][l];
+      kept.index[c] = std::uint32_t(at[l]);
+      ++c;
+    }
+    kept.count = c;
+  }
+}
+
+// Writes one register of T lanes to an array of Out at their positions.
+template <class Arch, class T, class Out>
+PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at, const xsimd::batch<T, Arch>& v) {
+  using B = xsimd::batch<T, Arch>;
+  constexpr std::size_t W = B::size;
+  if (!at.index && at.real == W) {
+    if constexpr (std::is_same<T, Out>::value) {
+      v.store_unaligned(target + at.base);
+    } else {
+      xsimd::batch<double, Arch> lo, hi;
+      widen<Arch>(v, lo, hi);
+      lo.store_unaligned(target + at.base);
+      hi.store_unaligned(target + at.base + W / 2);
+    }
+    return;
+  }
+  alignas(64) T lanes[W];
+  v.store_aligned(lanes);
+  for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = Out(lanes[l]);
+}
+
+// Writes a status per lane: `ok` where `finished`, needs_fallback elsewhere.
+template <class Arch, class T>
+PWCONTACT_INLINE void write_statuses(Status* target, const LanePositions& at,
+                           const xsimd::batch_bool<T, Arch>& finished) {
+  constexpr std::size_t W = xsimd::batch<T, Arch>::size;
+  static_assert(static_cast<std::uint8_t>(Status::ok) == 0 &&
+                static_cast<std::uint8_t>(needs_fallback) == 0xFF);
+  if constexpr (is_avx512<Arch>) {
+    if (!at.index && at.real == W) {
+      // One byte per lane from the mask: 0xFF where not finished.
+      const __m128i bytes = _mm_movm_epi8(static_cast<__mmask16>(~finished.data));
+      if constexpr (W == 16) _mm_storeu_si128(reinterpret_cast<__m128i*>(target + at.base), bytes);
+      else _mm_storel_epi64(reinterpret_cast<__m128i*>(target + at.base), bytes);
+      return;
+    }
+  }
+  bool lanes[W];
+  finished.store_unaligned(lanes);
+  for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = lanes[l] ? Status::ok : needs_fallback;
+}
+
+// Runs `body(span, from, position, real)` over a span of n pairs in blocks:
+// `real` pairs loaded from position `from` of `span`, answered at chunk
+// position `position`; the last block is padded (PaddedTail) so that nothing
+// is read past n.
+template <std::size_t Block, class In, class Body>
+PWCONTACT_INLINE void for_each_block(const PairSpan<In>& in, std::size_t n, Body&& body) {
+  std::size_t i = 0;
+  for (; i + Block <= n; i += Block) body(in, i, i, Block);
+  if (i < n) {
+    const PaddedTail<In, Block> tail(in, i, n - i);
+    body(tail.span, 0, i, n - i);
+  }
+}
+
+// What the full-answer and overlap blocks share: U groups of lanes, their
+// pairs, scale factors, brackets and positions, and the safeguarded step.
+template <class Arch, class T>
+class LaneGroups {
+ public:
+  using B = xsimd::batch<T, Arch>;
+  using M = xsimd::batch_bool<T, Arch>;
+  static constexpr std::size_t W = B::size;
+  static constexpr int U = interleaved_groups<Arch>;
+  static constexpr std::size_t size = U * W;
+
+ protected:
+  LaneGroups(const ChunkSettings& settings, ChunkCounters& counters)
+      : settings_(settings), counters_(counters) {}
+
+  std::size_t lanes_in_group(std::size_t real, int u) const {
+    const std::size_t first = std::size_t(u) * W;
+    return real > first ? (real - first < W ? real - first : W) : 0;
+  }
+
+  // Lanes that hold a pair of the span rather than padding.
+  PWCONTACT_INLINE M real_lanes(int u) const {
+    if (at_[u].real == W) return B(0) == B(0);
+    return B::load_aligned(lane_numbers<T>) < B(T(at_[u].real));
+  }
+
+  // Loads group u from the caller's arrays (see start() of the blocks).
+  template <class In>
+  PWCONTACT_INLINE void load(const PairSpan<In>& in, std::size_t from, std::size_t position,
+            const std::uint32_t* index, std::size_t real, int u) {
+    const std::size_t offset = std::size_t(u) * W;
+    load_pairs<Arch, T, In>(in, from + offset, pair_[u], scale_[u]);
+    at_[u] = {position + offset, index ? index + offset : nullptr, lanes_in_group(real, u)};
+  }
+
+  void count_evaluations(int evaluations) {
+    std::size_t real = 0;
+    for (int u = 0; u < U; ++u) real += at_[u].real;
+    counters_.lane_evaluations += std::uint64_t(real) * std::uint64_t(evaluations);
+  }
+
+  // One safeguarded step: narrows the bracket with the sign of g, takes the
+  // formulation's step, and bisects when the step leaves the bracket (an
+  // inclusive test: at convergence the step lands on a bracket end).
+  PWCONTACT_INLINE M advance(const Evaluation<B>& e, int u) {
+    hi_[u] = xsimd::select(e.g > B(0), e.lambda, hi_[u]);
+    lo_[u] = xsimd::select(e.g < B(0), e.lambda, lo_[u]);
+    const B next = settings_.formulation == Formulation::log_odds ? log_odds_step(e) : newton_step(e);
+    const M newton = (lo_[u] <= next) & (next <= hi_[u]);
+    lambda_[u] = xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5));
+    return newton;
+  }
+
+  const ChunkSettings& settings_;
+  ChunkCounters& counters_;
+  PairLanes<B> pair_[U];
+  B scale_[U], lambda_[U], lo_[U], hi_[U];
+  M live_[U];
+  LanePositions at_[U];
+};
+
+}  // namespace pwcontact::kernels

@@ -1,0 +1,274 @@
+// The overlap-only batch kernel: whether mu < cutoff for many pairs at once,
+// decided with certificates so that most lanes stop early.
+//
+// Bounds on mu^2 (shared/notes/numerics.md; equation numbers refer to
+// shared/seed/theory.txt):
+// - before any evaluation, from extents along the centre line r = r12:
+//   the points at distance rho_i = |r| / sqrt(r^T Qi^-1 r) from centre i
+//   towards the other centre lie in ellipsoid i, so scaled by mu the two
+//   ellipsoids share a point of the segment once mu (rho1 + rho2) >= |r|:
+//   mu^2 <= 1 / (1/sqrt(s0) + 1/sqrt(s1))^2 with s_i = r^T Qi^-1 r; and the
+//   support extents h_i = sqrt(r^T Qi r) / |r| give a separating plane
+//   perpendicular to r while mu (h1 + h2) < |r|: mu^2 >= |r|^4 / (sqrt(r^T Q1 r)
+//   + sqrt(r^T Q2 r))^2. Both are exact for spheres.
+// - after an evaluation at lambda: mu^2 >= f(lambda) (eq. 6), and since f is
+//   concave, its tangents at the bracket ends lie above it: mu^2 is at most
+//   the height where they cross.
+// A bound decides a lane when it clears cutoff^2 by more than its rounding
+// error, estimated as a multiple of eps times the element growth of the
+// factorisations behind it (the float kernels were measured below ~100 growth
+// eps; the margin is 256 growth eps).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <type_traits>
+
+#include "kernels/kernel_api.hpp"
+#include "kernels/lane_blocks.hpp"
+#include "kernels/simd_math.hpp"
+
+namespace pwcontact::kernels {
+
+template <class T>
+inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>::epsilon();
+
+// Float steps a mixed-precision overlap solve takes before the undecided lanes
+// go to double lanes.
+inline constexpr int mixed_overlap_float_steps = 1;
+
+// What an undecided lane keeps between passes besides its pair: lambda, the
+// bracket with f and g at its ends (for the tangents), the certified bounds
+// (margins applied) and the largest margin so far.
+inline constexpr int overlap_state = 10;
+template <class T>
+using OverlapKept = KeptLanes<T, overlap_state>;
+
+template <class Arch, class T>
+class OverlapBlock : public LaneGroups<Arch, T> {
+  using Base = LaneGroups<Arch, T>;
+  using Base::at_, Base::pair_, Base::lambda_, Base::lo_, Base::hi_, Base::live_, Base::settings_,
+      Base::counters_;
+
+ public:
+  using typename Base::B;
+  using typename Base::M;
+  using Base::size, Base::U, Base::W;
+
+  OverlapBlock(const ChunkSettings& settings, ChunkCounters& counters, OverlapKept<T>& kept)
+      : Base(settings, counters), kept_(kept), cutoff_(T(settings.cutoff_mu2)) {}
+
+  // A first pass's block (see FullBlock::start), answered at `position` of
+  // the chunk or at the positions in `index`: checks, nondimensionalises,
+  // and decides what the extents along r12 decide.
+  template <class In>
+  PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position,
+             const std::uint32_t* index, std::size_t real, const OverlapSpan& out, bool keep) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      this->load(in, from, position, index, real, u);
+      const PairLanes<B>& p = pair_[u];
+      const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
+      live_[u] = this->real_lanes(u) & all_finite(p) & positive_definite(f1) & positive_definite(f2);
+      const B s0 = inverse_quadratic_form(f1, p.r), s1 = inverse_quadratic_form(f2, p.r);
+      const B root0 = xsimd::sqrt(s0), root1 = xsimd::sqrt(s1);
+      lambda_[u] = root1 / (root0 + root1);
+      lo_[u] = B(0);
+      hi_[u] = B(1);
+      f_lo_[u] = B(0);
+      g_lo_[u] = -s0;  // g = -f', f'(0) = s0
+      f_hi_[u] = B(0);
+      g_hi_[u] = s1;
+
+      // Rounding: the slopes carry the growth of their factorisations; the
+      // support extents r^T Qi r the ratio of |Q||r||r| to their value.
+      B abs_r[3];
+      for (int k = 0; k < 3; ++k) abs_r[k] = xsimd::abs(p.r[k]);
+      const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
+      B abs_q1[6], abs_q2[6];
+      for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
+      const B spread = xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2);
+      margin_[u] = B(certificate_margin_per_growth<T>) *
+                   xsimd::max(xsimd::max(growth(f1, p.q1), growth(f2, p.q2)), spread);
+      const B rr = dot3(p.r, p.r);
+      const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
+      const B radial = B(1) / (B(1) / root0 + B(1) / root1);
+      lower_[u] = rr * rr / (support * support) * (B(1) - margin_[u]);
+      upper_[u] = radial * radial * (B(1) + margin_[u]);
+      // Coincident centres: mu^2 = 0 < cutoff^2.
+      const M coincident = !((s0 > B(0)) & (s1 > B(0)));
+      upper_[u] = xsimd::select(coincident, B(0), upper_[u]);
+      decide(u, out, keep, counters_.decided_by_prefilter);
+    }
+  }
+
+  // A later pass's block: the kept lanes from position j on (count in all).
+  PWCONTACT_INLINE void resume(std::size_t j, std::size_t count) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      const std::size_t at = j + std::size_t(u) * W;
+      for (int k = 0; k < pair_components; ++k)
+        component(pair_[u], k) = B::load_unaligned(kept_.values[k] + at);
+      B* const state[overlap_state] = {&lambda_[u], &lo_[u],    &hi_[u],    &f_lo_[u],  &g_lo_[u],
+                                       &f_hi_[u],   &g_hi_[u],  &lower_[u], &upper_[u], &margin_[u]};
+      for (int k = 0; k < overlap_state; ++k)
+        *state[k] = B::load_unaligned(kept_.values[pair_components + k] + at);
+      at_[u] = {0, kept_.index + at, at < count ? (count - at < W ? count - at : W) : 0};
+      live_[u] = this->real_lanes(u);
+    }
+  }
+
+  // One evaluation per lane: tightens both bounds and decides what they decide.
+  PWCONTACT_INLINE void step(const OverlapSpan& out, bool keep) {
+    this->count_evaluations(1);
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      const Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
+      const M above = e.g > B(0), below = e.g < B(0);
+      f_hi_[u] = xsimd::select(above, e.f, f_hi_[u]);
+      g_hi_[u] = xsimd::select(above, e.g, g_hi_[u]);
+      f_lo_[u] = xsimd::select(below, e.f, f_lo_[u]);
+      g_lo_[u] = xsimd::select(below, e.g, g_lo_[u]);
+      this->advance(e, u);
+      margin_[u] = xsimd::max(margin_[u],
+                              B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
+      // Where the tangents at lo and hi cross: f_lo - g_lo (x - lo) =
+      // f_hi - g_hi (x - hi), with g_lo < 0 < g_hi.
+      const B x = (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
+      const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
+      lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
+      upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
+      decide(u, out, keep, counters_.decided_by_certificate);
+    }
+  }
+
+ private:
+  // Writes the lanes the bounds decide (live ones only), counts them, and
+  // keeps the undecided ones or leaves them to the reference path.
+  PWCONTACT_INLINE void decide(int u, const OverlapSpan& out, bool keep, std::uint64_t& decided_count) {
+    const B cutoff(cutoff_);
+    const M overlapping = live_[u] & (upper_[u] < cutoff);
+    const M apart = live_[u] & (lower_[u] >= cutoff);
+    const M decided = overlapping | apart;
+    bool overlap_lanes[W], decided_lanes[W];
+    overlapping.store_unaligned(overlap_lanes);
+    decided.store_unaligned(decided_lanes);
+    const LanePositions& at = at_[u];
+    std::uint64_t n = 0;
+    for (std::size_t l = 0; l < at.real; ++l) {
+      const std::size_t i = at[l];
+      out.overlap[i] = overlap_lanes[l] ? 1 : 0;
+      out.status[i] = decided_lanes[l] ? Status::ok : needs_fallback;
+      n += decided_lanes[l];
+    }
+    decided_count += n;
+    if (keep) {
+      const B values[OverlapKept<T>::arrays] = {
+          pair_[u].r[0],  pair_[u].r[1],  pair_[u].r[2],  pair_[u].q1[0], pair_[u].q1[1],
+          pair_[u].q1[2], pair_[u].q1[3], pair_[u].q1[4], pair_[u].q1[5], pair_[u].q2[0],
+          pair_[u].q2[1], pair_[u].q2[2], pair_[u].q2[3], pair_[u].q2[4], pair_[u].q2[5],
+          lambda_[u],     lo_[u],         hi_[u],         f_lo_[u],       g_lo_[u],
+          f_hi_[u],       g_hi_[u],       lower_[u],      upper_[u],      margin_[u]};
+      keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided, values, at);
+    }
+  }
+
+  OverlapKept<T>& kept_;
+  T cutoff_;
+  B f_lo_[U], g_lo_[U], f_hi_[U], g_hi_[U], lower_[U], upper_[U], margin_[U];
+};
+
+// A block of the first pass and a block of a later pass (see
+// first_pass_block in contact_kernel.hpp for why they are functions).
+template <class Arch, class T, class In>
+__attribute__((noinline)) void overlap_first_block(const PairSpan<In>& span, std::size_t from,
+                                                   std::size_t position, const std::uint32_t* index,
+                                                   std::size_t real, const OverlapSpan& out,
+                                                   const ChunkSettings& settings,
+                                                   ChunkCounters& counters, OverlapKept<T>& kept) {
+  OverlapBlock<Arch, T> block(settings, counters, kept);
+  block.start(span, from, position, index, real, out, true);
+}
+
+template <class Arch, class T>
+__attribute__((noinline)) void overlap_later_block(std::size_t j, std::size_t count, bool keep,
+                                                   const OverlapSpan& out,
+                                                   const ChunkSettings& settings,
+                                                   ChunkCounters& counters, OverlapKept<T>& kept) {
+  OverlapBlock<Arch, T> block(settings, counters, kept);
+  block.resume(j, count);
+  block.step(out, keep);
+}
+
+// The passes after the first: the undecided lanes, packed, one evaluation
+// per pass, until none is left or the cap is reached.
+template <class Arch, class T>
+void later_overlap_passes(OverlapKept<T>& kept, const OverlapSpan& out,
+                          const ChunkSettings& settings, ChunkCounters& counters) {
+  constexpr std::size_t size = OverlapBlock<Arch, T>::size;
+  const int cap = settings.iterations == automatic_iterations ? settings.max_iterations
+                                                              : settings.iterations;
+  for (int done = 0; kept.count > 0 && done < cap;) {
+    const std::size_t count = kept.count;
+    kept.count = 0;  // packed in place: a block is read before anything is written over it
+    ++done;
+    for (std::size_t j = 0; j < count; j += size)
+      overlap_later_block<Arch, T>(j, count, done < cap, out, settings, counters, kept);
+  }
+}
+
+// Overlap only, arithmetic T on pairs In; `index` (may be null) gives the
+// chunk positions of the pairs when they were gathered from elsewhere.
+template <class Arch, class T, class In>
+void solve_overlap_on(const PairSpan<In>& in, const std::uint32_t* index, std::size_t n,
+                      const OverlapSpan& out, const ChunkSettings& settings, OverlapKept<T>& kept,
+                      ChunkCounters& counters) {
+  for_each_block<OverlapBlock<Arch, T>::size>(
+      in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+        overlap_first_block<Arch, T, In>(span, from, position, index ? index + position : nullptr,
+                                         real, out, settings, counters, kept);
+      });
+  later_overlap_passes<Arch, T>(kept, out, settings, counters);
+}
+
+template <class Arch, class T, class In>
+void solve_overlap(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
+                          const ChunkSettings& settings, const Scratch& scratch,
+                          ChunkCounters& counters) {
+  OverlapKept<T> kept(scratch, 0);
+  solve_overlap_on<Arch, T, In>(in, nullptr, n, out, settings, kept, counters);
+}
+
+// Mixed precision: float lanes decide what they can with float margins, the
+// rest is gathered and decided by double lanes.
+template <class Arch>
+void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std::size_t n,
+                                const ChunkSettings& settings, const Scratch& scratch,
+                                ChunkCounters& counters) {
+  // The float lanes keep their undecided lanes for one step, then hand over.
+  ChunkSettings float_settings = settings;
+  float_settings.iterations = mixed_overlap_float_steps;
+  OverlapKept<float> float_kept(scratch, 0);
+  solve_overlap_on<Arch, float, double>(in, nullptr, n, out, float_settings, float_kept, counters);
+
+  // Gather the pairs still undecided (status needs_fallback) after the float
+  // lanes, in the arrays beyond those the double lanes keep.
+  OverlapKept<double> kept(scratch, 0);
+  const std::size_t stride = scratch.capacity + scratch_padding_pairs;
+  double* const gathered = static_cast<double*>(scratch.memory) + OverlapKept<double>::footprint * stride;
+  std::uint32_t* const positions = reinterpret_cast<std::uint32_t*>(gathered + pair_components * stride);
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (out.status[i] != needs_fallback) continue;
+    for (int k = 0; k < pair_components; ++k) gathered[std::size_t(k) * stride + count] = component(in, k)[i];
+    positions[count++] = std::uint32_t(i);
+  }
+  PairSpan<double> span;
+  for (int k = 0; k < pair_components; ++k) {
+    const double* column = gathered + std::size_t(k) * stride;
+    if (k < 3) span.r12[k] = column;
+    else if (k < 9) span.q1[k - 3] = column;
+    else span.q2[k - 9] = column;
+  }
+  solve_overlap_on<Arch, double, double>(span, positions, count, out, settings, kept, counters);
+}
+
+}  // namespace pwcontact::kernels

@@ -1,0 +1,360 @@
+// The arithmetic of the batch kernels on SIMD registers: one pair per lane.
+//
+// The mathematics is the reference path's (include/pwcontact/reference.hpp);
+// equation numbers refer to shared/seed/theory.txt. Everything here is a
+// template on the register type, so that the copies compiled with different
+// instruction-set flags are distinct symbols (see contact_kernel.hpp).
+#pragma once
+
+#include <immintrin.h>
+#include <xsimd/xsimd.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <type_traits>
+
+// The kernels are long chains of small functions on registers; GCC's inliner
+// gives up on some of them in the larger kernels, and a call that passes a
+// dozen registers through memory costs more than the arithmetic (measured:
+// 20 % of the whole kernel). Everything on the hot path is forced inline.
+#define PWCONTACT_INLINE inline __attribute__((always_inline))
+#define PWCONTACT_INLINE_LAMBDA __attribute__((always_inline))
+// Rarely taken paths (Accuracy::high) stay out of the hot code.
+#define PWCONTACT_COLD inline __attribute__((noinline, cold))
+
+namespace pwcontact::kernels {
+
+template <class Arch>
+inline constexpr bool is_avx512 = std::is_base_of<xsimd::avx512f, Arch>::value;
+
+// ---------------------------------------------------------------------------
+// Symmetric 3x3 matrices: 6 numbers, upper triangle row-major (eq. 3).
+
+// Q = L D L^T with L unit lower triangular, the reciprocal pivots kept since
+// every solve divides by them. rᵀQ⁻¹r = Σ yᵢ²/dᵢ (y = L⁻¹r) is then a sum of
+// positive terms, and Q is positive definite iff every dᵢ > 0.
+template <class B>
+struct Ldlt {
+  B d0, d1, d2;
+  B inv_d0, inv_d1, inv_d2;
+  B l10, l20, l21;
+};
+
+template <class B>
+PWCONTACT_INLINE Ldlt<B> factor(const B a[6]) {
+  Ldlt<B> f;
+  f.d0 = a[0];
+  f.inv_d0 = B(1) / f.d0;
+  f.l10 = a[1] * f.inv_d0;
+  f.l20 = a[2] * f.inv_d0;
+  f.d1 = a[3] - f.l10 * a[1];
+  f.inv_d1 = B(1) / f.d1;
+  const B t = a[4] - f.l20 * a[1];
+  f.l21 = t * f.inv_d1;
+  f.d2 = a[5] - f.l20 * a[2] - f.l21 * t;
+  f.inv_d2 = B(1) / f.d2;
+  return f;
+}
+
+template <class B>
+PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f) {
+  const B zero(0);
+  return (f.d0 > zero) & (f.d1 > zero) & (f.d2 > zero);
+}
+
+// The largest ratio of the magnitudes that cancel in a pivot to the pivot:
+// the factor by which rounding errors in Q are amplified in rᵀQ⁻¹r
+// (measured: relative error of f below ~100 growth eps, p99 ~3 growth eps).
+template <class B>
+PWCONTACT_INLINE B growth(const Ldlt<B>& f, const B a[6]) {
+  // d1 = a3 - l10 a1 and d2 = a5 - l20 a2 - l21 t with t = l21 d1.
+  const B g1 = (a[3] + xsimd::abs(f.l10 * a[1])) * f.inv_d1;
+  const B g2 = (a[5] + xsimd::abs(f.l20 * a[2]) + f.l21 * f.l21 * f.d1) * f.inv_d2;
+  return xsimd::max(g1, g2);
+}
+
+// y = L⁻¹ b
+template <class B>
+PWCONTACT_INLINE void forward(const Ldlt<B>& f, const B b[3], B y[3]) {
+  y[0] = b[0];
+  y[1] = b[1] - f.l10 * y[0];
+  y[2] = b[2] - f.l20 * y[0] - f.l21 * y[1];
+}
+
+// x = L⁻ᵀ D⁻¹ y, i.e. x = Q⁻¹ b when y = L⁻¹ b
+template <class B>
+PWCONTACT_INLINE void backward(const Ldlt<B>& f, const B y[3], B x[3]) {
+  x[2] = y[2] * f.inv_d2;
+  x[1] = y[1] * f.inv_d1 - f.l21 * x[2];
+  x[0] = y[0] * f.inv_d0 - f.l10 * x[1] - f.l20 * x[2];
+}
+
+// bᵀQ⁻¹b
+template <class B>
+PWCONTACT_INLINE B inverse_quadratic_form(const Ldlt<B>& f, const B b[3]) {
+  B y[3];
+  forward(f, b, y);
+  return y[0] * y[0] * f.inv_d0 + y[1] * y[1] * f.inv_d1 + y[2] * y[2] * f.inv_d2;
+}
+
+template <class B>
+PWCONTACT_INLINE void symmetric_times(const B a[6], const B x[3], B y[3]) {
+  y[0] = a[0] * x[0] + a[1] * x[1] + a[2] * x[2];
+  y[1] = a[1] * x[0] + a[3] * x[1] + a[4] * x[2];
+  y[2] = a[2] * x[0] + a[4] * x[1] + a[5] * x[2];
+}
+
+// The adjugate (cofactor matrix) and determinant of a symmetric Q: rᵀQ⁻¹r =
+// rᵀ adj(Q) r / det Q without a division per pivot. Cancellation makes it
+// unreliable for ill-conditioned Q (shared/notes/numerics.md): only for
+// initial guesses and positive-definiteness tests, never for answers.
+template <class B>
+struct Adjugate {
+  B c00, c01, c02, c11, c12, c22;
+  B det;
+  explicit Adjugate(const B a[6]) {
+    c00 = a[3] * a[5] - a[4] * a[4];
+    c01 = a[2] * a[4] - a[1] * a[5];
+    c02 = a[1] * a[4] - a[2] * a[3];
+    c11 = a[0] * a[5] - a[2] * a[2];
+    c12 = a[1] * a[2] - a[0] * a[4];
+    c22 = a[0] * a[3] - a[1] * a[1];
+    det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+  }
+  // rᵀ adj(Q) r
+  B form(const B r[3]) const {
+    return c00 * r[0] * r[0] + c11 * r[1] * r[1] + c22 * r[2] * r[2] +
+           B(2) * (c01 * r[0] * r[1] + c02 * r[0] * r[2] + c12 * r[1] * r[2]);
+  }
+  // Sylvester's criterion: the leading principal minors a0, a0 a3 - a1^2, det.
+  auto positive_definite(const B a[6]) const {
+    const B zero(0);
+    return (a[0] > zero) & (c22 > zero) & (det > zero);
+  }
+};
+
+// bᵀQ b
+template <class B>
+PWCONTACT_INLINE B quadratic_form(const B a[6], const B b[3]) {
+  B y[3];
+  symmetric_times(a, b, y);
+  return b[0] * y[0] + b[1] * y[1] + b[2] * y[2];
+}
+
+template <class B>
+PWCONTACT_INLINE B dot3(const B a[3], const B b[3]) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+// ---------------------------------------------------------------------------
+// One pair per lane, already nondimensionalised.
+
+template <class B>
+struct PairLanes {
+  B r[3];
+  B q1[6];
+  B q2[6];
+};
+
+// Everything one evaluation at lambda computes. Callers use what they need;
+// the rest is dead code the compiler removes after inlining.
+template <class B>
+struct Evaluation {
+  B lambda, mu;   // lambda and 1 - lambda
+  B q[6];         // Q(lambda) = mu Q1 + lambda Q2, eq. (10)
+  Ldlt<B> ldlt;
+  B s[3];         // Q⁻¹ r
+  B a[3], b[3];   // Q1 s and Q2 s: x0 - c1 = mu a, x0 - c2 = -lambda b (eq. 9)
+  B ya[3], yb[3]; // L⁻¹ a, L⁻¹ b
+  B rs;           // rᵀ Q⁻¹ r
+  B sa, sb;       // sᵀQ1 s, sᵀQ2 s
+  B f;            // f(lambda) = lambda mu rᵀQ⁻¹r, eq. (11)
+  B g;            // mu2² - mu1² = lambda² sb - mu² sa = -f'(lambda), eq. (13); increasing
+  B dg;           // g'(lambda) = 2 aᵀQ⁻¹b = 2 sᵀ[mu Q2⁻¹ + lambda Q1⁻¹]⁻¹ s >= 0
+};
+
+template <class B>
+PWCONTACT_INLINE Evaluation<B> evaluate(const PairLanes<B>& p, const B& lambda) {
+  Evaluation<B> e;
+  e.lambda = lambda;
+  e.mu = B(1) - lambda;  // exact for lambda >= 1/2
+  // The convex combination, never Q1 + lambda (Q2 - Q1): that would lose the
+  // smaller matrix when the sizes differ by orders of magnitude.
+  for (int k = 0; k < 6; ++k) e.q[k] = e.mu * p.q1[k] + lambda * p.q2[k];
+  e.ldlt = factor(e.q);
+  B y[3];
+  forward(e.ldlt, p.r, y);
+  backward(e.ldlt, y, e.s);
+  e.rs = y[0] * y[0] * e.ldlt.inv_d0 + y[1] * y[1] * e.ldlt.inv_d1 + y[2] * y[2] * e.ldlt.inv_d2;
+  symmetric_times(p.q1, e.s, e.a);
+  symmetric_times(p.q2, e.s, e.b);
+  forward(e.ldlt, e.a, e.ya);
+  forward(e.ldlt, e.b, e.yb);
+  e.sa = dot3(e.s, e.a);
+  e.sb = dot3(e.s, e.b);
+  e.f = lambda * e.mu * e.rs;
+  e.g = lambda * lambda * e.sb - e.mu * e.mu * e.sa;
+  e.dg = B(2) * (e.ya[0] * e.yb[0] * e.ldlt.inv_d0 + e.ya[1] * e.yb[1] * e.ldlt.inv_d1 +
+                 e.ya[2] * e.yb[2] * e.ldlt.inv_d2);
+  return e;
+}
+
+// The next lambda of Newton's method on g in lambda.
+template <class B>
+PWCONTACT_INLINE B newton_step(const Evaluation<B>& e) {
+  return e.lambda - e.g / e.dg;
+}
+
+// The next lambda of Newton's method on psi = ln(mu2² / mu1²) in the log-odds
+// t = ln(lambda / mu). For two spheres psi is linear in t (sa/sb is constant),
+// so one step is exact from anywhere; for elongated shapes psi stays closer to
+// linear than g does near the ends of [0, 1], where g has near poles.
+//   dpsi/dt = 2 + 2 lambda mu [(aQ⁻¹b - aQ⁻¹a)/sa - (bQ⁻¹b - aQ⁻¹b)/sb]
+// using d(sa)/dlambda = -2 aᵀQ⁻¹(b - a) and d(sb)/dlambda = -2 bᵀQ⁻¹(b - a).
+// Two Padé approximants keep it free of transcendental functions and exact to
+// third order at the root: ln x ~ 2 (x - 1)/(x + 1), so psi ~ 2 g / (mu1² +
+// mu2²); e^dt ~ (2 + dt)/(2 - dt), which maps the log-odds step to
+// lambda' = lambda (2 + dt) / (2 + dt (2 lambda - 1)). Steps are clamped to
+// |dt| <= 3/2 (a factor of at most 7 on the odds); where dpsi/dt is not
+// positive the plain Newton step is taken instead.
+template <class B>
+PWCONTACT_INLINE B log_odds_step(const Evaluation<B>& e) {
+  const Ldlt<B>& l = e.ldlt;
+  const B aqa = e.ya[0] * e.ya[0] * l.inv_d0 + e.ya[1] * e.ya[1] * l.inv_d1 +
+                e.ya[2] * e.ya[2] * l.inv_d2;
+  const B bqb = e.yb[0] * e.yb[0] * l.inv_d0 + e.yb[1] * e.yb[1] * l.inv_d1 +
+                e.yb[2] * e.yb[2] * l.inv_d2;
+  const B aqb = B(0.5) * e.dg;
+  const B mu1 = e.mu * e.mu * e.sa, mu2 = e.lambda * e.lambda * e.sb;
+  // dt = numerator / denominator with both multiplied by sa sb (mu1² + mu2²)
+  const B sasb = e.sa * e.sb;
+  const B slope = B(2) * sasb + B(2) * e.lambda * e.mu * ((aqb - aqa) * e.sb - (bqb - aqb) * e.sa);
+  const B denominator = slope * (mu1 + mu2);
+  B numerator = B(-2) * e.g * sasb;
+  const B limit = B(1.5) * denominator;
+  numerator = xsimd::min(xsimd::max(numerator, -limit), limit);
+  const B two_d = B(2) * denominator;
+  const B next = e.lambda * (two_d + numerator) /
+                 (two_d + numerator * (B(2) * e.lambda - B(1)));
+  return xsimd::select(denominator > B(0), next, newton_step(e));
+}
+
+// ---------------------------------------------------------------------------
+// Error-free transformations, for the refined evaluation (Accuracy::high).
+
+// a + b = s + e exactly (Knuth's TwoSum)
+template <class B>
+PWCONTACT_INLINE void two_sum(const B& a, const B& b, B& s, B& e) {
+  s = a + b;
+  const B z = s - a;
+  e = (a - (s - z)) + (b - z);
+}
+
+// a b = p + e exactly, with a fused multiply-add written as an intrinsic
+// (xsimd 8.1's fms on AVX-512 is a plain a*b - c that only the compiler's
+// contraction would fuse). SSE2 has no FMA: there the correction is lost and
+// Accuracy::high falls back to the plain evaluation's floor (documented).
+template <class B>
+PWCONTACT_INLINE void two_product(const B& a, const B& b, B& p, B& e) {
+  using Arch = typename B::arch_type;
+  p = a * b;
+  if constexpr (is_avx512<Arch> && std::is_same<typename B::value_type, double>::value)
+    e = _mm512_fmsub_pd(a, b, p);
+  else if constexpr (is_avx512<Arch>)
+    e = _mm512_fmsub_ps(a, b, p);
+  else if constexpr (std::is_base_of<xsimd::fma3<xsimd::avx2>, Arch>::value)
+    e = xsimd::fms(a, b, p);  // a real vfmsub on fma3
+  else
+    e = B(0);
+}
+
+// A double-double accumulator: hi + lo
+template <class B>
+struct Compensated {
+  B hi, lo;
+  void add_product(const B& a, const B& b) {
+    B p, pe, s, se;
+    two_product(a, b, p, pe);
+    two_sum(hi, p, s, se);
+    hi = s;
+    lo += pe + se;
+  }
+  B value() const { return hi + lo; }
+};
+
+// f at lambda to nearly full precision whatever the conditioning of Q: one
+// step of iterative refinement of s = Q⁻¹r with the residual
+// r - (mu Q1 s + lambda Q2 s) accumulated error-free from the exact inputs
+// (not from the rounded Q(lambda)), then rᵀs accumulated error-free. Takes
+// copies (a cold call must not make the caller's registers escape to memory)
+// and returns f and the refined s.
+template <class B>
+struct Refined {
+  B f;
+  B s[3];
+};
+
+template <class B>
+PWCONTACT_COLD Refined<B> refined_f(const PairLanes<B> p, const Ldlt<B> ldlt, const B lambda,
+                                    const B mu, Refined<B> current) {
+  B residual[3];
+  const B minus_mu = -mu, minus_lambda = -lambda;
+  static constexpr int row[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  for (int i = 0; i < 3; ++i) {
+    Compensated<B> acc{p.r[i], B(0)};
+    for (int j = 0; j < 3; ++j) {
+      // -mu Q1 and -lambda Q2 entries split exactly into a rounded part and
+      // its error; the errors' products with s are second order.
+      B m1, m1e, m2, m2e;
+      two_product(minus_mu, p.q1[row[i][j]], m1, m1e);
+      two_product(minus_lambda, p.q2[row[i][j]], m2, m2e);
+      acc.add_product(m1, current.s[j]);
+      acc.add_product(m2, current.s[j]);
+      acc.lo += (m1e + m2e) * current.s[j];
+    }
+    residual[i] = acc.value();
+  }
+  B y[3], correction[3];
+  forward(ldlt, residual, y);
+  backward(ldlt, y, correction);
+  for (int i = 0; i < 3; ++i) current.s[i] += correction[i];
+  Compensated<B> rs{B(0), B(0)};
+  for (int i = 0; i < 3; ++i) rs.add_product(p.r[i], current.s[i]);
+  current.f = lambda * mu * rs.value();
+  return current;
+}
+
+// ---------------------------------------------------------------------------
+// Moving lanes between double and float registers of the same instruction
+// set: a float register holds the lanes of two double registers.
+
+template <class Arch>
+PWCONTACT_INLINE xsimd::batch<float, Arch> narrow(const xsimd::batch<double, Arch>& lo,
+                                        const xsimd::batch<double, Arch>& hi) {
+  if constexpr (is_avx512<Arch>) {
+    const __m512 low = _mm512_castps256_ps512(_mm512_cvtpd_ps(lo));
+    return _mm512_insertf32x8(low, _mm512_cvtpd_ps(hi), 1);
+  } else if constexpr (std::is_base_of<xsimd::avx, Arch>::value) {
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm256_cvtpd_ps(lo)), _mm256_cvtpd_ps(hi), 1);
+  } else {
+    return _mm_movelh_ps(_mm_cvtpd_ps(lo), _mm_cvtpd_ps(hi));
+  }
+}
+
+template <class Arch>
+PWCONTACT_INLINE void widen(const xsimd::batch<float, Arch>& x, xsimd::batch<double, Arch>& lo,
+                  xsimd::batch<double, Arch>& hi) {
+  if constexpr (is_avx512<Arch>) {
+    lo = _mm512_cvtps_pd(_mm512_castps512_ps256(x));
+    hi = _mm512_cvtps_pd(_mm512_extractf32x8_ps(x, 1));
+  } else if constexpr (std::is_base_of<xsimd::avx, Arch>::value) {
+    lo = _mm256_cvtps_pd(_mm256_castps256_ps128(x));
+    hi = _mm256_cvtps_pd(_mm256_extractf128_ps(x, 1));
+  } else {
+    lo = _mm_cvtps_pd(x);
+    hi = _mm_cvtps_pd(_mm_movehl_ps(x, x));
+  }
+}
+
+}  // namespace pwcontact::kernels
