@@ -88,8 +88,7 @@ std::vector<int> sorted_unique(std::vector<int> counts) {
 }
 
 std::vector<int> default_swept_iterations() {
-  return sorted_unique(
-      {2, 3, 4, 5, 6, 7, 8, default_iterations_double, default_iterations_float});
+  return sorted_unique({2, 3, 4, 5, 6, 7, 8});
 }
 
 // "--name=value" -> value

@@ -68,10 +68,6 @@ double median(std::vector<double> values) {
   return (*std::max_element(values.begin(), values.begin() + mid) + upper) / 2;
 }
 
-int effective_iterations(const Configuration& c) {
-  if (c.iterations > 0) return c.iterations;
-  return c.path == Path::batch_float ? default_iterations_float : default_iterations_double;
-}
 
 Configuration default_settings(Path path, Family family, Isa default_isa) {
   return Configuration{path, family, default_isa, 0, 1};
@@ -234,9 +230,8 @@ void print_iteration_choice(std::ostream& out, const Table& table, Isa default_i
                    speedup_text(table.speedup(*best)).c_str(), best->counter(counter::max_rel_err),
                    best->counter(counter::fallbacks_per_pair));
     if (const Measurement* d = table.find(defaults))
-      line += format("; default (%d) %.3g pairs/s, fastest / default = %.2f",
-                     effective_iterations(defaults), d->pairs_per_second,
-                     best->pairs_per_second / d->pairs_per_second);
+      line += format("; default (automatic) %.3g pairs/s, fastest / default = %.2f",
+                     d->pairs_per_second, best->pairs_per_second / d->pairs_per_second);
     out << line << '\n';
   }
 }
@@ -323,8 +318,8 @@ void print_summary(std::ostream& out, const std::vector<Measurement>& measuremen
   out << "\nThread scaling (same configuration, more threads / 1 thread)\n";
   print_thread_scaling(out, table);
   out << format("\nTargets (1 thread; default settings are isa:auto = isa:%s and iterations:0 = "
-                "%d in double, %d in float)\n",
-                isa_name(default_isa), default_iterations_double, default_iterations_float);
+                "automatic)\n",
+                isa_name(default_isa));
   print_targets(out, table, default_isa);
   out << format("\nFixed iteration counts swept on isa:%s, 1 thread\n", isa_name(default_isa));
   print_iteration_choice(out, table, default_isa);

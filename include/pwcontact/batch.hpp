@@ -193,6 +193,17 @@ std::optional<Accuracy> parse_accuracy(std::string_view name) noexcept;
 std::optional<Formulation> parse_formulation(std::string_view name) noexcept;
 
 // mu^2 (and whatever else `out` asks for) of every pair of the view.
+//
+// Accuracy: mu^2 to the floor of the arithmetic (double: ~eps times the
+// condition of Q; Accuracy::high removes the conditioning). A lane is
+// finished when one more Newton step would change f by less than 1e-11 f and
+// mu^2 is then f plus that predicted gain (a third-order error). When lambda
+// or a geometric output is asked for, the threshold is 1e-13 f, which puts
+// lambda within ~1e-12 of the maximiser (and mu1^2 = mu2^2 = mu^2 at the
+// returned lambda to ~3e-11 on the peer library's family); mu^2 alone is
+// therefore computed faster, and may differ in the last bits from the mu^2
+// of a call that asks for lambda.
+//
 // Results do not depend on the thread count or on a pair's position in the
 // batch (bit for bit) and are within the reference path's precision of it
 // for every instruction set. Throws std::invalid_argument for a malformed

@@ -214,8 +214,7 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
                        throw std::invalid_argument(quoted(value) + " is not double or float");
                    });
   parser.add_value({"--iterations"}, "N",
-                   "0 = library default: " + std::to_string(default_iterations_double) +
-                       " in double, " + std::to_string(default_iterations_float) + " in float",
+                   "0 = automatic: every pair iterates until its convergence check passes",
                    "fixed Newton iterations of the batch path, 0 to 1000; lanes that miss "
                    "the convergence check are recomputed by the reference path (status 1, "
                    "ok_fallback)",

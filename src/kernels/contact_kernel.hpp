@@ -113,6 +113,57 @@ inline constexpr int full_state = 4;  // scale, lambda, lo, hi
 template <class T>
 using FullKept = KeptLanes<T, full_state>;
 
+// How a pass hands over the lanes it did not finish.
+enum class Handoff {
+  none,      // leave them to the reference path (status needs_fallback)
+  adaptive,  // registers with many: append them to the kept lanes; with a
+             // few: write their lambda and bracket at their chunk position
+             // for pack_unfinished() (first passes)
+  packed,    // append them to the kept lanes (later passes)
+};
+
+// lambda and the bracket of a chunk's lanes, by chunk position.
+template <class T>
+struct StateByPosition {
+  T* lambda = nullptr;
+  T* lo = nullptr;
+  T* hi = nullptr;
+};
+
+// Packs the lanes the first pass left unfinished (status needs_fallback,
+// lambda not NaN) into the kept lanes: the pair, nondimensionalised in its
+// own type before any narrowing (as load_pairs does), the scale and the state.
+// Templated on Arch although it uses no SIMD: see the file's header.
+template <class Arch, class T, class In>
+void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status,
+                     const StateByPosition<T>& state, FullKept<T>& kept) {
+  for (std::size_t i = 0; i < n; ++i) {
+    if (status[i] != needs_fallback || !(state.lambda[i] == state.lambda[i])) continue;
+    In v[pair_components];
+    for (int k = 0; k < pair_components; ++k) v[k] = component(in, k)[i];
+    static constexpr int diagonals[6] = {3, 6, 8, 9, 12, 14};
+    In largest = v[3];
+    for (int k : diagonals) largest = v[k] > largest ? v[k] : largest;
+    In t = 1;
+    if (!(largest >= In(KernelTolerance<T>::safe_scale_low) &&
+          largest <= In(KernelTolerance<T>::safe_scale_high)) &&
+        largest > 0 && largest < std::numeric_limits<In>::infinity()) {
+      // sqrt = m 2^e with m in [1/2, 1): the power of two below is 2^(e - 1).
+      // (Builtins, not std:: overloads: no inline library code in this file.)
+      int e = 0;
+      __builtin_frexp(__builtin_sqrt(double(largest)), &e);
+      t = In(__builtin_ldexp(1.0, 1 - e));
+    }
+    const std::size_t c = kept.count++;
+    for (int k = 0; k < pair_components; ++k) kept.values[k][c] = T(v[k] * (k < 3 ? t : t * t));
+    kept.values[15][c] = T(t);
+    kept.values[16][c] = state.lambda[i];
+    kept.values[17][c] = state.lo[i];
+    kept.values[18][c] = state.hi[i];
+    kept.index[c] = std::uint32_t(i);
+  }
+}
+
 // A block of U groups of lanes, solved for the full answer.
 template <class Arch, class T>
 class FullBlock : public LaneGroups<Arch, T> {
@@ -126,7 +177,10 @@ class FullBlock : public LaneGroups<Arch, T> {
   using Base::size, Base::U, Base::W;
 
   FullBlock(const ChunkSettings& settings, ChunkCounters& counters, FullKept<T>& kept)
-      : Base(settings, counters), kept_(kept) {}
+      : Base(settings, counters),
+        kept_(kept),
+        gain_tolerance_(settings.outputs != 0 ? KernelTolerance<T>::corrected_gain_with_lambda
+                                              : KernelTolerance<T>::corrected_gain) {}
 
   // A first pass's block, loaded from position `from` of `in` and answered at
   // position `position` of the chunk (they differ for a padded tail), `real`
@@ -214,10 +268,10 @@ class FullBlock : public LaneGroups<Arch, T> {
   }
 
   // The last evaluation of a pass: decides which lanes are finished, writes
-  // their answers, and keeps the others for the next pass (or leaves them to
-  // the reference path when `keep` is false).
+  // their answers, and hands the others over (see Handoff).
   template <class Out>
-  PWCONTACT_INLINE void finish(const ResultSpan<Out>& out, bool keep) {
+  PWCONTACT_INLINE void finish(const ResultSpan<Out>& out, Handoff handoff,
+                               const StateByPosition<T>& state = {}) {
     this->count_evaluations(1);
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
@@ -229,6 +283,9 @@ class FullBlock : public LaneGroups<Arch, T> {
       // whose error is third order, ~(step / scale of lambda) gain (measured
       // at the double floor on the random, pw85 and log-uniform families up
       // to aspect 1e3 for gains up to 1e-10 f; the tolerance is 1e-11 f).
+      // lambda itself (the Newton step's) is then accurate to ~ the square of
+      // the step: when lambda or what depends on it is asked for, the
+      // tolerance is tighter (see KernelTolerance).
       // Otherwise (a bisection step, round-off noise in g near convergence)
       // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
       // ulp of f finishes it, with the answer f.
@@ -236,7 +293,7 @@ class FullBlock : public LaneGroups<Arch, T> {
       // half g times it, no second division.)
       const B step = settings_.formulation == Formulation::newton ? e.lambda - lambda_[u] : e.g / e.dg;
       const B gain = B(0.5) * e.g * step;
-      const M corrected = newton & (e.dg > B(0)) & (gain <= B(KernelTolerance<T>::corrected_gain) * e.f);
+      const M corrected = newton & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f);
       const M bounded = xsimd::abs(e.g) * (hi_[u] - lo_[u]) <= B(KernelTolerance<T>::bounded_gain) * e.f;
       M done = corrected | bounded;
       if constexpr (KernelTolerance<T>::checks_growth)
@@ -251,19 +308,39 @@ class FullBlock : public LaneGroups<Arch, T> {
       write_answer(out, u, e, answer.s);
       write_statuses<Arch, T>(out.status, at_[u], finished);
 
-      if (keep) {
-        B values[FullKept<T>::arrays];
-        for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);
-        values[15] = scale_[u];
-        values[16] = lambda_[u];
-        values[17] = lo_[u];
-        values[18] = hi_[u];
-        keep_lanes<Arch, T, full_state>(kept_, live_[u] & !finished, values, at_[u]);
+      const M unfinished = live_[u] & !finished;
+      if (handoff == Handoff::adaptive && xsimd::any(unfinished)) {
+        // A register with many unfinished lanes is packed right away (one
+        // masked compress per array); one with a few leaves them by position,
+        // to be packed lane by lane (pack_unfinished), which is cheaper for a
+        // few and costlier for many (measured: random pairs, with a few per
+        // register, and the pw85 family, with half, each gain ~10 %).
+        const bool many = std::size_t(xsimd::hadd(xsimd::select(unfinished, B(1), B(0)))) * 4 > W;
+        if (many) keep_registers(u, unfinished);
+        const B nan(std::numeric_limits<T>::quiet_NaN());
+        write_lanes<Arch, T, T>(state.lambda, at_[u], many ? nan : xsimd::select(unfinished, lambda_[u], nan));
+        write_lanes<Arch, T, T>(state.lo, at_[u], lo_[u]);
+        write_lanes<Arch, T, T>(state.hi, at_[u], hi_[u]);
+      } else if (handoff == Handoff::adaptive) {
+        write_lanes<Arch, T, T>(state.lambda, at_[u], B(std::numeric_limits<T>::quiet_NaN()));
+      } else if (handoff == Handoff::packed) {
+        keep_registers(u, unfinished);
       }
     }
   }
 
  private:
+  // Appends the lanes of group u selected by `which` to the kept lanes.
+  PWCONTACT_INLINE void keep_registers(int u, const M& which) {
+    B values[FullKept<T>::arrays];
+    for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);
+    values[15] = scale_[u];
+    values[16] = lambda_[u];
+    values[17] = lo_[u];
+    values[18] = hi_[u];
+    keep_lanes<Arch, T, full_state>(kept_, which, values, at_[u]);
+  }
+
   // lambda, when asked for, and the geometric outputs, each only when asked
   // for: those are computed out of the hot path by a specialisation per
   // combination (write_geometry), from copies of the registers they need.
@@ -290,6 +367,7 @@ class FullBlock : public LaneGroups<Arch, T> {
   }
 
   FullKept<T>& kept_;
+  const B gain_tolerance_;
   B lambda_coincident_[U];
   M coincident_[U];
 };
@@ -300,13 +378,14 @@ class FullBlock : public LaneGroups<Arch, T> {
 template <class Arch, class T, class In, class Out>
 __attribute__((noinline)) void first_pass_block(const PairSpan<In>& span, std::size_t from,
                                                 std::size_t position, std::size_t real, int first,
-                                                bool keep, const ResultSpan<Out>& out,
+                                                Handoff handoff, const StateByPosition<T>& state,
+                                                const ResultSpan<Out>& out,
                                                 const ChunkSettings& settings,
                                                 ChunkCounters& counters, FullKept<T>& kept) {
   FullBlock<Arch, T> block(settings, counters, kept);
   block.start(span, from, position, real);
   block.iterate(first - 1);
-  block.finish(out, keep);
+  block.finish(out, handoff, state);
 }
 
 // A block of a mixed-precision solve: float lanes (twice as many per
@@ -316,7 +395,8 @@ __attribute__((noinline)) void first_pass_block(const PairSpan<In>& span, std::s
 template <class Arch>
 __attribute__((noinline)) void mixed_block(const PairSpan<double>& span, std::size_t from,
                                            std::size_t position, std::size_t real, int float_steps,
-                                           bool keep, const ResultSpan<double>& out,
+                                           Handoff handoff, const StateByPosition<double>& state,
+                                           const ResultSpan<double>& out,
                                            const ChunkSettings& settings, ChunkCounters& counters,
                                            FullKept<double>& kept, FullKept<float>& never_kept) {
   constexpr std::size_t half = FullBlock<Arch, double>::size;
@@ -333,7 +413,7 @@ __attribute__((noinline)) void mixed_block(const PairSpan<double>& span, std::si
     block.start_from(span, from + h * half, position + h * half,
                      real - h * half < half ? real - h * half : half, lambda_start + h * half);
     block.iterate(mixed_double_evaluations - 1);
-    block.finish(out, keep);
+    block.finish(out, handoff, state);
   }
 }
 
@@ -345,7 +425,7 @@ __attribute__((noinline)) void later_pass_block(std::size_t j, std::size_t count
                                                 ChunkCounters& counters, FullKept<T>& kept) {
   FullBlock<Arch, T> block(settings, counters, kept);
   block.resume(j, count);
-  block.finish(out, keep);
+  block.finish(out, keep ? Handoff::packed : Handoff::none);
 }
 
 // The passes after the first, in automatic mode: the kept lanes, packed,
@@ -364,21 +444,36 @@ void later_passes(FullKept<T>& kept, const ResultSpan<Out>& out, int done,
   }
 }
 
+// lambda and the bracket by chunk position, in the scratch arrays after the
+// kept lanes'.
+template <class T>
+StateByPosition<T> state_by_position(const Scratch& scratch) {
+  const std::size_t stride = scratch.capacity + scratch_padding_pairs;
+  T* const base = static_cast<T*>(scratch.memory) + FullKept<T>::footprint * stride;
+  static_assert(FullKept<T>::footprint + 3 <= scratch_values_per_pair);
+  return {base, base + stride, base + 2 * stride};
+}
+
 // Full answer, arithmetic T, pairs In, results Out (float lanes on double
 // pairs round them once on loading and widen the results on writing).
 template <class Arch, class T, class In, class Out>
 void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t n,
                 const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
   FullKept<T> kept(scratch, 0);
+  const StateByPosition<T> state = state_by_position<T>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
   const int first = automatic ? first_pass_evaluations<T> : settings.iterations;
-  const bool keep = automatic && first < settings.max_iterations;
+  const Handoff handoff = automatic && first < settings.max_iterations ? Handoff::adaptive
+                                                                       : Handoff::none;
   for_each_block<FullBlock<Arch, T>::size>(
       in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
-        first_pass_block<Arch, T, In, Out>(span, from, position, real, first, keep, out, settings,
-                                           counters, kept);
+        first_pass_block<Arch, T, In, Out>(span, from, position, real, first, handoff, state, out,
+                                           settings, counters, kept);
       });
-  if (automatic) later_passes<Arch, T>(kept, out, first, settings, counters);
+  if (handoff == Handoff::adaptive) {
+    pack_unfinished<Arch>(in, n, out.status, state, kept);
+    later_passes<Arch, T>(kept, out, first, settings, counters);
+  }
 }
 
 // Mixed precision (see mixed_block): the answer has double accuracy.
@@ -387,15 +482,21 @@ void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out,
                       const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
   FullKept<double> kept(scratch, 0);
   FullKept<float> never_kept(scratch, 0);
+  const StateByPosition<double> state = state_by_position<double>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
   const int float_steps = automatic ? mixed_float_steps : settings.iterations;
-  const bool keep = automatic && mixed_double_evaluations < settings.max_iterations;
+  const Handoff handoff = automatic && mixed_double_evaluations < settings.max_iterations
+                              ? Handoff::adaptive
+                              : Handoff::none;
   for_each_block<FullBlock<Arch, float>::size>(
       in, n, [&](const PairSpan<double>& span, std::size_t from, std::size_t position, std::size_t real) {
-        mixed_block<Arch>(span, from, position, real, float_steps, keep, out, settings, counters, kept,
-                          never_kept);
+        mixed_block<Arch>(span, from, position, real, float_steps, handoff, state, out, settings,
+                          counters, kept, never_kept);
       });
-  if (automatic) later_passes<Arch, double>(kept, out, mixed_double_evaluations, settings, counters);
+  if (handoff == Handoff::adaptive) {
+    pack_unfinished<Arch>(in, n, out.status, state, kept);
+    later_passes<Arch, double>(kept, out, mixed_double_evaluations, settings, counters);
+  }
 }
 
 }  // namespace pwcontact::kernels

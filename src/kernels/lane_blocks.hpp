@@ -37,6 +37,9 @@ struct KernelTolerance<double> {
   // relative to f (see FullBlock::finish): with the second-order correction,
   // and on the rigorous bound without it.
   static constexpr double corrected_gain = 1e-11;
+  // lambda to ~1e-12 (and the peer library's check, mu1^2 = mu2^2 = mu^2 at
+  // the returned lambda, to ~1e-11 on its family).
+  static constexpr double corrected_gain_with_lambda = 1e-13;
   static constexpr double bounded_gain = 4 * std::numeric_limits<double>::epsilon();
   // Inputs whose largest diagonal entry lies in this range are solved as
   // they are; others are first rescaled.
@@ -50,6 +53,7 @@ template <>
 struct KernelTolerance<float> {
   // (float: measured at the float floor for gains up to 1e-5 f on random pairs)
   static constexpr float corrected_gain = 1e-5f;
+  static constexpr float corrected_gain_with_lambda = 1e-7f;
   static constexpr float bounded_gain = 4 * std::numeric_limits<float>::epsilon();
   static constexpr float safe_scale_low = 0x1p-36f, safe_scale_high = 0x1p36f;
   // A float lane whose factorisation shows element growth above this is
