@@ -49,6 +49,7 @@ BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   report.isa = resolve_isa(options.isa);
   report.iterations = options.iterations;
   report.precision = options.precision;
+  report.accuracy = options.accuracy;
   if (report.precision == Precision::automatic)
     report.precision = single_input<T> ? Precision::single_precision : Precision::double_precision;
   if (single_input<T> && report.precision != Precision::single_precision)
@@ -81,7 +82,7 @@ void check_pairs(const PairBatchView<T>& pairs) {
 // three arrays or none.
 template <class T>
 unsigned output_bits(const ContactOutputs<T>& out) {
-  unsigned bits = out.lambda ? kernels::with_lambda : 0;
+  unsigned bits = out.lambda ? unsigned(kernels::with_lambda) : 0u;
   auto triple = [&](T* const (&v)[3], unsigned bit, const char* name) {
     const int given = (v[0] != nullptr) + (v[1] != nullptr) + (v[2] != nullptr);
     if (given != 0 && given != 3)

@@ -17,10 +17,11 @@ const char* status_name(Status s) noexcept {
 const char* status_description(Status s) noexcept {
   switch (s) {
     case Status::ok:
-      return "valid: converged within the batch kernel's fixed iterations";
+      return "valid: answered by the batch kernels (converged, or decided by a certificate), "
+             "or by the reference path when it was asked for";
     case Status::ok_fallback:
-      return "valid: recomputed by the scalar reference path after the batch lane "
-             "missed its convergence check";
+      return "valid: answered by the scalar reference path after the batch kernels left the "
+             "pair (convergence check missed, or undecided)";
     case Status::non_finite_input:
       return "invalid: NaN or infinity in r12, q1 or q2 (mu2 and lambda are NaN)";
     case Status::q1_not_positive_definite:

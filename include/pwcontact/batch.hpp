@@ -166,8 +166,9 @@ inline constexpr int max_automatic_iterations = 40;
 // What a batch call did.
 struct BatchReport {
   std::size_t pairs = 0;
-  std::size_t fallbacks = 0;  // valid lanes that the kernels did not finish, recomputed
-                              // by the reference path (status ok_fallback or not_converged)
+  std::size_t fallbacks = 0;  // valid pairs the kernels left (not finished, or in overlap
+                              // mode undecided), answered by the reference path
+                              // (status ok_fallback, or not_converged if it failed too)
   std::size_t invalid = 0;    // pairs whose status is not valid (mu2 is NaN)
   std::size_t status_counts[status_count] = {};
   // Overlap-only calls: pairs decided before any Newton evaluation (by the
@@ -182,6 +183,7 @@ struct BatchReport {
   int iterations = 0;           // the iteration setting used (0: automatic)
   Precision precision = Precision::automatic;        // as resolved
   Formulation formulation = Formulation::automatic;  // as resolved
+  Accuracy accuracy = Accuracy::standard;
   int threads = 0;              // the thread count actually used
 };
 

@@ -9,9 +9,11 @@ namespace pwcontact {
 
 enum class Status : std::uint8_t {
   // Valid answers.
-  ok = 0,             // converged within the batch kernel's fixed iterations
-  ok_fallback = 1,    // the batch lane missed its convergence check and was
-                      // recomputed by the scalar reference path
+  ok = 0,           // answered by the batch kernels (or by the reference path
+                    // when that was the path asked for)
+  ok_fallback = 1,  // the batch kernels left the pair (convergence check missed,
+                    // or an overlap left undecided) and the scalar reference
+                    // path answered it
   // Invalid answers: mu2 and lambda are NaN.
   non_finite_input = 2,          // NaN or infinity in r12, q1 or q2
   q1_not_positive_definite = 3,  // Q1 zero, negative, indefinite or singular

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <optional>
 
 #include "cli/text_output.hpp"
@@ -23,6 +24,14 @@ std::string supported_isa_list() {
   std::string list;
   for (Isa isa : supported_isas()) list += std::string(list.empty() ? "" : ", ") + isa_name(isa);
   return list;
+}
+
+// "auto", or a count from 0 (automatic as well, the library's convention) to 1000.
+int parse_iterations(std::string_view text) {
+  if (text == "auto") return automatic_iterations;
+  if (text.empty() || text.find_first_not_of("0123456789") != std::string_view::npos)
+    throw std::invalid_argument(quoted(text) + " is neither auto nor a count from 1 to 1000");
+  return int(parse_integer(text, 0, 1000));
 }
 
 }  // namespace
@@ -45,6 +54,16 @@ std::uint64_t parse_unsigned(std::string_view text) {
     throw std::invalid_argument(quoted(text) + " does not fit in 64 bits");
   if (error != std::errc() || end != text.data() + text.size())
     throw std::invalid_argument(quoted(text) + " is not a whole number >= 0");
+  return value;
+}
+
+double parse_positive_number(std::string_view text) {
+  double value = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error == std::errc::invalid_argument || end != text.data() + text.size())
+    throw std::invalid_argument(quoted(text) + " is not a number");
+  if (error != std::errc() || !(value > 0) || !std::isfinite(value))
+    throw std::invalid_argument(quoted(text) + " is not a positive finite number");
   return value;
 }
 
@@ -197,30 +216,41 @@ std::string OptionParser::help() const {
 
 // ---------------------------------------------------------------------------
 
-const char* precision_name(Precision precision) noexcept {
-  return precision == Precision::single_precision ? "float" : "double";
-}
-
 void add_solver_options(OptionParser& parser, SolverOptions& options) {
-  parser.add_value({"--precision"}, "double|float", "double",
-                   "floating type of the solve; with float the input numbers are rounded to "
-                   "float (beyond its range: +-inf)",
-                   [&options](std::string_view value) {
-                     if (value == "double")
-                       options.precision = Precision::double_precision;
-                     else if (value == "float")
-                       options.precision = Precision::single_precision;
-                     else
-                       throw std::invalid_argument(quoted(value) + " is not double or float");
-                   });
-  parser.add_value({"--iterations"}, "N",
-                   "0 = automatic: every pair iterates until its convergence check passes",
-                   "fixed Newton iterations of the batch path, 0 to 1000; lanes that miss "
-                   "the convergence check are recomputed by the reference path (status 1, "
-                   "ok_fallback)",
-                   [&options](std::string_view value) {
-                     options.iterations = int(parse_integer(value, 0, 1000));
-                   });
+  add_choice(parser, "--precision",
+             Choices<Precision>{
+                 {Precision::double_precision, Precision::single_precision, Precision::mixed},
+                 precision_name},
+             options.precision,
+             "arithmetic of the batch path: double; float, on the numbers rounded to "
+             "float (mu^2 to ~1e-5 relative, the fastest); or mixed, float iterations "
+             "then double Newton steps and a double convergence check (double accuracy "
+             "at nearly float speed). Pairs the lanes do not finish are answered in "
+             "double by the reference path (status 1)");
+  parser.add_value(
+      {"--iterations"}, "N|auto", "auto",
+      "Newton iterations of the batch path. auto (also 0): each pair iterates "
+      "until its convergence check passes, up to " +
+          std::to_string(max_automatic_iterations) +
+          " evaluations. N from 1 to 1000: every pair gets N (mixed precision "
+          "adds a double finish; overlap mode stops a pair once it is decided). "
+          "Pairs that still fail the check are recomputed by the reference path "
+          "(status 1, ok_fallback)",
+      [&options](std::string_view value) { options.iterations = parse_iterations(value); });
+  add_choice(parser, "--accuracy",
+             Choices<Accuracy>{{Accuracy::standard, Accuracy::high}, accuracy_name},
+             options.accuracy,
+             "standard: mu^2 to the floor of the arithmetic (~eps times the condition "
+             "of Q); high: the last evaluation refined with an error-free residual, "
+             "which removes that floor (double or mixed precision only)");
+  add_choice(
+      parser, "--formulation",
+      Choices<Formulation>{{Formulation::automatic, Formulation::newton, Formulation::log_odds},
+                           formulation_name},
+      options.formulation,
+      "the Newton iteration of the batch path (advanced): auto, the measured best "
+      "for the precision; newton, in lambda; log_odds, in ln(lambda / (1 - lambda)), "
+      "steadier for elongated shapes. The summary names the one used");
   parser.add_value(
       {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
       "OpenMP threads, 0 to 1024; results do not depend on it",
@@ -235,6 +265,13 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
         if (!isa) throw std::invalid_argument(quoted(value) + " is not auto, sse2, avx2 or avx512");
         options.isa = *isa;
       });
+}
+
+void check_solver_options(const OptionParser& parser, const SolverOptions& options) {
+  if (options.accuracy == Accuracy::high && options.precision == Precision::single_precision)
+    parser.fail(
+        "--accuracy high refines mu^2 in double: it needs --precision double or mixed, "
+        "not float");
 }
 
 Isa resolve_instruction_set(Isa requested) {

@@ -1,7 +1,8 @@
 // Parsing the command line: a declarative option table per subcommand, from
 // which both the parser and the help text are made, so that the help can
 // never drift from what is accepted. Also the options every solving
-// subcommand shares (precision, iterations, threads, instruction set).
+// subcommand shares (precision, iterations, accuracy, formulation, threads,
+// instruction set).
 #pragma once
 
 #include <cstdint>
@@ -44,6 +45,7 @@ using Arguments = std::vector<std::string_view>;
 // completes "option --name: ..." when the text is not acceptable.
 std::int64_t parse_integer(std::string_view text, std::int64_t min, std::int64_t max);
 std::uint64_t parse_unsigned(std::string_view text);
+double parse_positive_number(std::string_view text);  // finite and > 0
 
 // One subcommand's syntax: its options and its operands (positional
 // arguments). Options may come before or after operands; "--" ends the
@@ -102,22 +104,60 @@ class OptionParser {
   std::vector<Option> options_;
 };
 
+// The values of an option that takes one of a few names, such as
+// --precision double|float|mixed, named as the library names them, so that
+// the help, the parser and the summaries spell them alike.
+template <class E>
+struct Choices {
+  std::vector<E> values;
+  const char* (*name_of)(E) noexcept;
+
+  // "double|float|mixed" with separator "|"; "double, float or mixed" with
+  // ", " and " or ".
+  std::string names(std::string_view separator, std::string_view last_separator) const {
+    std::string text;
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      if (i != 0) text += i + 1 < values.size() ? separator : last_separator;
+      text += name_of(values[i]);
+    }
+    return text;
+  }
+
+  // Throws std::invalid_argument when `text` names none of the values.
+  E parse(std::string_view text) const {
+    for (E value : values)
+      if (text == name_of(value)) return value;
+    throw std::invalid_argument("'" + std::string(text) + "' is not " + names(", ", " or "));
+  }
+};
+
+// Adds the option `name` (value names from `choices`), writing into
+// `target`, whose value now is the default the help shows.
+template <class E>
+void add_choice(OptionParser& parser, std::string_view name, const Choices<E>& choices, E& target,
+                std::string description) {
+  parser.add_value({name}, choices.names("|", "|"), choices.name_of(target), std::move(description),
+                   [&target, choices](std::string_view text) { target = choices.parse(text); });
+}
+
 // ---------------------------------------------------------------------------
 // Options shared by the subcommands that solve pairs
 
-enum class Precision { double_precision, single_precision };
-const char* precision_name(Precision precision) noexcept;
-
-struct SolverOptions {
-  Precision precision = Precision::double_precision;
-  int iterations = 0;  // 0: the library default for the precision
-  int threads = 0;     // 0: as many as OpenMP offers
-  Isa isa = Isa::automatic;
+// The batch options as the command line sets them. The precision starts as
+// double rather than automatic: the pairs are read as double, and the help,
+// the option checks and the summary can then name it.
+struct SolverOptions : BatchOptions {
+  SolverOptions() { precision = Precision::double_precision; }
 };
 
-// Adds --precision, --iterations, --threads and --isa, writing into `options`
-// (which must outlive the parser).
+// Adds --precision, --iterations, --accuracy, --formulation, --threads and
+// --isa, writing into `options` (which must outlive the parser).
 void add_solver_options(OptionParser& parser, SolverOptions& options);
+
+// After parsing: rejects the combinations the library refuses (high accuracy
+// in single precision), as a usage error of `parser`'s command rather than
+// an exception from deep inside a solve.
+void check_solver_options(const OptionParser& parser, const SolverOptions& options);
 
 // The instruction set the batch path will run on, resolved now so that an
 // unsupported choice stops the command before any work. Throws CommandError

@@ -1,6 +1,9 @@
-// `pwcontact contact`: mu^2, lambda and status of every pair of a text file.
+// `pwcontact contact`: mu^2 and what goes with it, or the overlap answer, for
+// every pair of a text file.
+#include <algorithm>
 #include <charconv>
 #include <cstdio>
+#include <initializer_list>
 
 #include "cli/number_table.hpp"
 #include "cli/solve.hpp"
@@ -13,8 +16,48 @@ namespace {
 // One pair per line: r12 (3 numbers), then Q1 and Q2 (6 numbers each).
 constexpr std::size_t numbers_per_pair = 15;
 
+// The columns of an output line. contact_point, normal and gradient are
+// three numbers each (x y z).
+enum class Column { mu2, lambda, status, contact_point, normal, gradient, overlap };
+
+const char* column_name(Column column) noexcept {
+  constexpr const char* names[] = {"mu2",    "lambda",   "status", "contact_point",
+                                   "normal", "gradient", "overlap"};
+  return names[int(column)];
+}
+
+// What --outputs may list (overlap mode has its own fixed columns).
+const Choices<Column> full_columns{{Column::mu2, Column::lambda, Column::status,
+                                    Column::contact_point, Column::normal, Column::gradient},
+                                   column_name};
+const std::vector<Column> default_columns{Column::mu2, Column::lambda, Column::status};
+const std::vector<Column> overlap_columns{Column::overlap, Column::status};
+
+std::vector<Column> parse_columns(std::string_view list) {
+  std::vector<Column> columns;
+  for (std::size_t start = 0; start <= list.size();) {
+    const std::size_t comma = std::min(list.find(',', start), list.size());
+    const Column column = full_columns.parse(list.substr(start, comma - start));
+    if (std::find(columns.begin(), columns.end(), column) != columns.end())
+      throw std::invalid_argument(std::string(column_name(column)) + " is listed twice");
+    columns.push_back(column);
+    start = comma + 1;
+  }
+  return columns;
+}
+
+std::string column_list(const std::vector<Column>& columns) {
+  std::string text;
+  for (Column column : columns)
+    text += (text.empty() ? "" : ",") + std::string(column_name(column));
+  return text;
+}
+
 struct ContactOptions {
   SolverOptions solver;
+  Mode mode = Mode::full;
+  double cutoff = 1;
+  std::vector<Column> columns = default_columns;
   bool scalar = false;
   std::string input = "-";
   std::string output = "-";
@@ -32,14 +75,49 @@ OptionParser contact_parser(ContactOptions& options) {
       "with '#' are skipped. nan and inf are numbers, answered with a status; any "
       "other line that does not hold exactly 15 numbers stops the run (exit status 2, "
       "nothing written).\n\n"
-      "Output: one line per pair, in input order: mu2 lambda status, numbers with 17 "
-      "significant digits (nan when the status is invalid). A summary goes to "
-      "standard error.",
+      "Output, --mode full: one line per pair, in input order, with the columns "
+      "listed by --outputs, separated by a space: mu2 (the contact function mu^2), "
+      "lambda (its maximiser in [0, 1]), status (a code below), contact_point (x0 - c1: "
+      "where the two ellipsoids, both scaled by mu about their centres, touch), normal "
+      "(the unit normal there, outward of ellipsoid 1; 0 0 0 for coincident centres) "
+      "and gradient (d mu^2 / d r12); the last three are x y z, three columns each. "
+      "Numbers have 17 significant digits, nan when the status is invalid; with "
+      "--precision float only the first ~7 are meaningful.\n\n"
+      "Output, --mode overlap: one line per pair, in input order: overlap status, "
+      "overlap being 1 when mu < cutoff (mu^2 < cutoff^2) and 0 otherwise (also 0 "
+      "for an invalid pair, whose status says why). Pairs are decided by cheap bounds "
+      "and certificates, most after few or no Newton evaluations, the rest by the "
+      "reference path (status 1); in double and mixed precision the answer agrees "
+      "with mu^2 < cutoff^2 whenever |mu^2 - cutoff^2| > 1e-9 cutoff^2 (for Q "
+      "conditioned up to ~1e8).\n\n"
+      "A summary goes to standard error: the mode and the settings as resolved, time "
+      "and rate, mean Newton evaluations per pair, fallbacks, statuses and, in "
+      "overlap mode, the overlapping pairs and how they were decided. An option that "
+      "does not apply to the chosen mode or path is a usage error, whatever its value.",
       "[FILE]", 1, [&options](std::string_view file) { options.input = file; });
+  add_choice(parser, "--mode", Choices<Mode>{{Mode::full, Mode::overlap}, mode_name}, options.mode,
+             "full: mu^2 and the columns of --outputs; overlap: whether each pair overlaps "
+             "(see Output)");
+  parser.add_value(
+      {"--cutoff"}, "MU", "1",
+      "--mode overlap only: a pair overlaps when mu < MU; positive and finite",
+      [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
+  parser.add_value({"--outputs"}, "LIST", column_list(default_columns),
+                   "--mode full only: the columns of each line, comma-separated, each at most "
+                   "once, in the order given: " +
+                       full_columns.names(", ", " and ") +
+                       " (see Output). Only what is listed is computed; mu2 alone is the "
+                       "fastest (it converges to a looser tolerance than with lambda or "
+                       "geometry, and may differ in the last digits)",
+                   [&options](std::string_view value) { options.columns = parse_columns(value); });
   add_solver_options(parser, options.solver);
   parser.add_flag({"--scalar"},
                   "solve every pair with the scalar reference path, contact_function<double> "
-                  "(<float> with --precision float), in parallel, instead of the batch path",
+                  "(<float> with --precision float, on the numbers rounded to float: beyond "
+                  "float range +-inf, status non_finite_input) and contact_geometry for the "
+                  "geometric columns, in parallel, instead of the batch path; same columns. "
+                  "--iterations, --accuracy, --formulation, --isa and --precision mixed "
+                  "apply to the batch path only",
                   [&options] { options.scalar = true; });
   parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
                    "write the results to OUT; it appears only when the run succeeds "
@@ -69,32 +147,113 @@ PairBatch<double> read_pairs(const std::string& path, int threads, std::string& 
 }
 
 template <class T>
-void append_result_line(std::string& text, const Solution<T>& solution, std::size_t i) {
-  char line[2 * max_number_chars + 8];
-  char* end = write_number(line, solution.mu2[i]);
-  *end++ = ' ';
-  end = write_number(end, solution.lambda[i]);
-  *end++ = ' ';
-  end = std::to_chars(end, line + sizeof line, int(solution.status[i])).ptr;
-  *end++ = '\n';
-  text.append(line, end);
+char* write_triple(char* out, const std::vector<T> (&column)[3], std::size_t i) {
+  for (int k = 0; k < 3; ++k) {
+    if (k != 0) *out++ = ' ';
+    out = write_number(out, column[k][i]);
+  }
+  return out;
 }
 
 template <class T>
-void solve_and_write(const PairBatch<T>& pairs, const ContactOptions& options, OutputFile& output,
-                     const std::string& source, double read_seconds) {
-  const Solution<T> solution = options.scalar ? solve_reference(pairs, options.solver.threads)
-                                              : solve_batch(pairs, options.solver);
+char* write_column(char* out, Column column, const Solution<T>& solution, std::size_t i) {
+  switch (column) {
+    case Column::mu2:
+      return write_number(out, solution.mu2[i]);
+    case Column::lambda:
+      return write_number(out, solution.lambda[i]);
+    case Column::status:
+      return std::to_chars(out, out + 3, int(solution.status[i])).ptr;
+    case Column::contact_point:
+      return write_triple(out, solution.contact_point, i);
+    case Column::normal:
+      return write_triple(out, solution.normal, i);
+    case Column::gradient:
+      return write_triple(out, solution.gradient, i);
+    case Column::overlap:
+      *out = solution.overlap[i] ? '1' : '0';
+      return out + 1;
+  }
+  return out;
+}
+
+// Room for a line with every column of full mode: 12 numbers, each followed
+// by a separator or the line end.
+constexpr std::size_t max_line_chars = 12 * (max_number_chars + 1);
+
+template <class T>
+void append_result_line(std::string& text, const std::vector<Column>& columns,
+                        const Solution<T>& solution, std::size_t i) {
+  char line[max_line_chars];
+  char* end = line;
+  for (Column column : columns) {
+    end = write_column(end, column, solution, i);
+    *end++ = ' ';
+  }
+  end[-1] = '\n';  // in place of the last separator
+  text.append(line, end);
+}
+
+// Full mode computes what the columns need, overlap mode its own two.
+Request request_for(const ContactOptions& options) {
+  Request request;
+  request.mode = options.mode;
+  request.cutoff = options.cutoff;
+  auto listed = [&options](Column column) {
+    return std::find(options.columns.begin(), options.columns.end(), column) !=
+           options.columns.end();
+  };
+  request.lambda = listed(Column::lambda);
+  request.status = listed(Column::status);
+  request.contact_point = listed(Column::contact_point);
+  request.normal = listed(Column::normal);
+  request.gradient = listed(Column::gradient);
+  return request;
+}
+
+template <class T>
+void write_solution(const Solution<T>& solution, const ContactOptions& options, OutputFile& output,
+                    const std::string& source, double read_seconds) {
+  const std::vector<Column>& columns =
+      options.mode == Mode::overlap ? overlap_columns : options.columns;
   const Stopwatch writing;
   write_lines_in_order(
-      output, pairs.size(), resolve_thread_count(options.solver.threads),
-      [&solution](std::string& text, std::size_t i) { append_result_line(text, solution, i); });
+      output, solution.report.pairs, resolve_thread_count(options.solver.threads),
+      [&](std::string& text, std::size_t i) { append_result_line(text, columns, solution, i); });
   output.commit();
 
-  std::fprintf(
-      stderr, "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s",
-      pairs.size(), source.c_str(), describe_seconds(read_seconds).c_str(), output.name().c_str(),
-      describe_seconds(writing.seconds()).c_str(), solution.describe().c_str());
+  std::fprintf(stderr,
+               "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s",
+               solution.report.pairs, source.c_str(), describe_seconds(read_seconds).c_str(),
+               output.name().c_str(), describe_seconds(writing.seconds()).c_str(),
+               solution.describe().c_str());
+}
+
+// Options that do not apply to the chosen mode or path are refused rather
+// than ignored, so that nobody believes they had an effect.
+void reject_given(const OptionParser& parser, std::initializer_list<const char*> names,
+                  const std::string& reason) {
+  for (const char* name : names)
+    if (parser.given(name)) parser.fail(std::string(name) + " " + reason);
+}
+
+void check_contact_options(const OptionParser& parser, const ContactOptions& options) {
+  check_solver_options(parser, options.solver);
+  if (options.mode == Mode::overlap) {
+    reject_given(parser, {"--outputs"},
+                 "applies to --mode full; --mode overlap writes the columns overlap status");
+    reject_given(parser, {"--accuracy"}, "applies to mu^2 (--mode full), not to overlap answers");
+  } else {
+    reject_given(parser, {"--cutoff"},
+                 "applies to --mode overlap (in full mode, compare mu2 with the cutoff squared)");
+  }
+  if (options.scalar) {
+    reject_given(parser, {"--iterations", "--accuracy", "--formulation", "--isa"},
+                 "applies to the batch path, not to --scalar (the reference path iterates "
+                 "to convergence, in scalar code)");
+    if (options.solver.precision == Precision::mixed)
+      parser.fail("--precision mixed applies to the batch path; --scalar runs in double or float");
+  }
 }
 
 ExitStatus run_contact(const Arguments& arguments) {
@@ -104,24 +263,28 @@ ExitStatus run_contact(const Arguments& arguments) {
     std::fputs(full_help(contact_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
-  if (options.scalar && (parser.given("--iterations") || parser.given("--isa")))
-    parser.fail(
-        "--iterations and --isa apply to the batch path, not to --scalar (the "
-        "reference path iterates to convergence, in scalar code)");
+  check_contact_options(parser, options);
   // Settle everything that can fail before reading a possibly large input.
   if (!options.scalar) options.solver.isa = resolve_instruction_set(options.solver.isa);
   const int threads = resolve_thread_count(options.solver.threads);
+  const Request request = request_for(options);
   OutputFile output(options.output);
 
   const Stopwatch reading;
   std::string source;
   PairBatch<double> pairs = read_pairs(options.input, threads, source);
-  if (options.solver.precision == Precision::single_precision) {
+  const double read_seconds = reading.seconds();
+  if (options.scalar && options.solver.precision == Precision::single_precision) {
+    // The float reference path is contact_function<float>: it takes float
+    // pairs. (The batch path rounds double pairs to float itself.)
     const PairBatch<float> single = convert_pairs<float>(pairs);
     pairs = PairBatch<double>();  // release the double copy before solving
-    solve_and_write(single, options, output, source, reading.seconds());
+    write_solution(solve_reference(single, request, threads), options, output, source,
+                   read_seconds);
   } else {
-    solve_and_write(pairs, options, output, source, reading.seconds());
+    write_solution(options.scalar ? solve_reference(pairs, request, threads)
+                                  : solve_batch(pairs, request, options.solver),
+                   options, output, source, read_seconds);
   }
   return ExitStatus::success;
 }
@@ -129,7 +292,7 @@ ExitStatus run_contact(const Arguments& arguments) {
 }  // namespace
 
 const Subcommand contact_subcommand = {
-    "contact", "mu^2, lambda and status of every pair in a file or standard input",
+    "contact", "mu^2 and more, or overlap only, of every pair in a file or stdin",
     contact_options_help, run_contact};
 
 }  // namespace pwcontact::cli

@@ -32,7 +32,8 @@ OptionParser demo_parser(DemoOptions& options) {
                 "batch path and prints its throughput; then solves them with the scalar "
                 "reference path and prints its throughput, the speed-up, and the accuracy of "
                 "the batch path against it (relative error of mu^2: max, 99.9th percentile, "
-                "median). With --precision float both paths see the same float-rounded pairs.",
+                "median). With --precision float both paths see the same float-rounded pairs "
+                "(the batch path then reads them as float).",
                 family.min_semi_axis, family.max_semi_axis, family.max_distance);
   OptionParser parser("demo", description);
   parser.add_value({"--pairs"}, "N", std::to_string(default_pairs), "number of random pairs",
@@ -52,15 +53,15 @@ std::string demo_options_help() {
 }
 
 // Relative error of mu^2 over the pairs both paths answer as valid.
-struct Accuracy {
+struct ErrorStatistics {
   std::size_t compared = 0;
   std::size_t validity_differs = 0;  // valid by one path, invalid by the other
   double max = 0, p999 = 0, median = 0;
 };
 
 template <class T>
-Accuracy accuracy_against(const Solution<T>& batch, const Solution<double>& reference) {
-  Accuracy accuracy;
+ErrorStatistics accuracy_against(const Solution<T>& batch, const Solution<double>& reference) {
+  ErrorStatistics accuracy;
   std::vector<double> errors;
   errors.reserve(batch.mu2.size());
   for (std::size_t i = 0; i < batch.mu2.size(); ++i) {
@@ -90,9 +91,10 @@ Accuracy accuracy_against(const Solution<T>& batch, const Solution<double>& refe
 template <class T>
 void print_report(const DemoOptions& options, const PairBatch<T>& batch_pairs,
                   const PairBatch<double>& reference_pairs, double generate_seconds) {
-  const Solution<T> batch = solve_batch(batch_pairs, options.solver);
-  const Solution<double> reference = solve_reference(reference_pairs, options.solver.threads);
-  const Accuracy accuracy = accuracy_against(batch, reference);
+  const Solution<T> batch = solve_batch(batch_pairs, Request{}, options.solver);
+  const Solution<double> reference =
+      solve_reference(reference_pairs, Request{}, options.solver.threads);
+  const ErrorStatistics accuracy = accuracy_against(batch, reference);
   std::printf("pwcontact demo: %zu random pairs, seed %llu (generated in %s)\n\n",
               batch.report.pairs, static_cast<unsigned long long>(options.seed),
               describe_seconds(generate_seconds).c_str());
@@ -116,6 +118,7 @@ ExitStatus run_demo(const Arguments& arguments) {
     std::fputs(full_help(demo_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
+  check_solver_options(parser, options.solver);
   options.solver.isa = resolve_instruction_set(options.solver.isa);
 
   const Stopwatch generating;

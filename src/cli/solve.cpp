@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <type_traits>
 
@@ -13,80 +14,172 @@ namespace pwcontact::cli {
 namespace {
 
 template <class T>
-constexpr Precision precision_of() {
-  return std::is_same_v<T, float> ? Precision::single_precision : Precision::double_precision;
+Solution<T> sized_solution(std::size_t pairs, const Request& request) {
+  Solution<T> solution;
+  solution.request = request;
+  auto size_if = [pairs](bool wanted, auto& column) { column.resize(wanted ? pairs : 0); };
+  const bool full = request.mode == Mode::full;
+  size_if(full, solution.mu2);
+  size_if(full && request.lambda, solution.lambda);
+  size_if(!full || request.status, solution.status);
+  size_if(!full, solution.overlap);
+  for (int k = 0; k < 3; ++k) {
+    size_if(full && request.contact_point, solution.contact_point[k]);
+    size_if(full && request.normal, solution.normal[k]);
+    size_if(full && request.gradient, solution.gradient[k]);
+  }
+  return solution;
+}
+
+// A column's storage as the library takes it: null when not asked for.
+template <class T>
+T* data_or_null(std::vector<T>& column) {
+  return column.empty() ? nullptr : column.data();
 }
 
 template <class T>
-Solution<T> sized_solution(std::size_t pairs) {
-  Solution<T> solution;
-  solution.mu2.resize(pairs);
-  solution.lambda.resize(pairs);
-  solution.status.resize(pairs);
-  return solution;
+ContactOutputs<T> contact_outputs(Solution<T>& solution) {
+  ContactOutputs<T> out;
+  out.mu2 = data_or_null(solution.mu2);
+  out.lambda = data_or_null(solution.lambda);
+  out.status = data_or_null(solution.status);
+  for (int k = 0; k < 3; ++k) {
+    out.contact_point[k] = data_or_null(solution.contact_point[k]);
+    out.normal[k] = data_or_null(solution.normal[k]);
+    out.gradient[k] = data_or_null(solution.gradient[k]);
+  }
+  return out;
+}
+
+template <class T>
+void store_geometry(const ContactOutputs<T>& out, std::size_t i,
+                    const ContactGeometry<T>& geometry) {
+  for (int k = 0; k < 3; ++k) {
+    if (out.contact_point[k]) out.contact_point[k][i] = geometry.contact_point[k];
+    if (out.normal[k]) out.normal[k][i] = geometry.normal[k];
+    if (out.gradient[k]) out.gradient[k][i] = geometry.gradient[k];
+  }
+}
+
+// The geometry of a pair without a valid answer, as the batch path gives it.
+template <class T>
+ContactGeometry<T> undefined_geometry() {
+  const T nan = std::numeric_limits<T>::quiet_NaN();
+  return {{nan, nan, nan}, {nan, nan, nan}, {nan, nan, nan}};
+}
+
+// "1", "0.5": the shortest text that reads back as `value`.
+std::string shortest_text(double value) {
+  char text[max_number_chars];
+  return std::string(text, std::to_chars(text, text + sizeof text, value).ptr);
+}
+
+std::string percent_of(std::size_t part, std::size_t whole) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g %%", whole ? 100.0 * double(part) / double(whole) : 0.0);
+  return text;
 }
 
 }  // namespace
 
+const char* mode_name(Mode mode) noexcept { return mode == Mode::overlap ? "overlap" : "full"; }
+
 template <class T>
 std::string Solution<T>::describe() const {
-  const std::string precision = precision_name(precision_of<T>());
-  const std::string threads =
-      std::to_string(report.threads) + " thread" + (report.threads == 1 ? "" : "s");
-  std::string text = reference_path
-                         ? "reference path contact_function<" + precision + ">, " + threads + "\n"
-                         : "batch path, " + precision + ", " + isa_name(report.isa) + ", " +
-                               std::to_string(report.iterations) + " iterations, " + threads + "\n";
-  text +=
-      "  time " + describe_seconds(seconds) + ", " + describe_rate(report.pairs, seconds) + "\n";
-  if (!reference_path) {
-    char share[32];
-    std::snprintf(share, sizeof share, " (%.3g %%)",
-                  report.pairs ? 100.0 * double(report.fallbacks) / double(report.pairs) : 0.0);
-    text += "  fallbacks " + std::to_string(report.fallbacks) + share + ", ";
+  const bool overlap_mode = request.mode == Mode::overlap;
+  std::string mode = std::string("mode ") + mode_name(request.mode);
+  if (overlap_mode) mode += " (cutoff " + shortest_text(request.cutoff) + ")";
+
+  std::string text;
+  if (reference_path) {
+    text = std::string("reference path contact_function<") +
+           (std::is_same_v<T, float> ? "float" : "double") + ">: " + mode + ", threads " +
+           std::to_string(report.threads) + "\n";
   } else {
-    text += "  ";
+    text = "batch path: " + mode + ", precision " + precision_name(report.precision) +
+           (overlap_mode ? "" : std::string(", accuracy ") + accuracy_name(accuracy)) +
+           ", formulation " + formulation_name(report.formulation) + "\n  isa " +
+           isa_name(report.isa) + ", iterations " +
+           (report.iterations == automatic_iterations ? std::string("auto")
+                                                      : std::to_string(report.iterations)) +
+           ", threads " + std::to_string(report.threads) + "\n";
   }
-  return text + "invalid " + std::to_string(report.invalid) +
-         "\n  statuses: " + describe_status_counts(report) + "\n";
+  char evaluations[64];
+  std::snprintf(evaluations, sizeof evaluations, ", mean evaluations per pair %.3g",
+                report.mean_evaluations);
+  text += "  time " + describe_seconds(seconds) + ", " + describe_rate(report.pairs, seconds) +
+          evaluations + "\n  ";
+  if (!reference_path)
+    text += "fallbacks " + std::to_string(report.fallbacks) + " (" +
+            percent_of(report.fallbacks, report.pairs) + "), ";
+  text += "invalid " + std::to_string(report.invalid) +
+          "\n  statuses: " + describe_status_counts(report) + "\n";
+  if (overlap_mode) {
+    // Whatever the kernels leave undecided, the reference path decides; its
+    // answers are exactly the pairs with its own status (ok for the
+    // reference path itself, ok_fallback for the batch path).
+    const Status by_reference = reference_path ? Status::ok : Status::ok_fallback;
+    text += "  overlapping " + std::to_string(report.overlapping) + " (" +
+            percent_of(report.overlapping, report.pairs) + "); decided by prefilter " +
+            std::to_string(report.decided_by_prefilter) + ", by certificate " +
+            std::to_string(report.decided_by_certificate) + ", by the reference path " +
+            std::to_string(report.status_counts[int(by_reference)]) + "\n";
+  }
+  return text;
 }
 
 template <class T>
-Solution<T> solve_batch(const PairBatch<T>& pairs, const SolverOptions& options) {
-  Solution<T> solution = sized_solution<T>(pairs.size());
-  BatchOptions batch_options;
-  batch_options.iterations = options.iterations;
-  batch_options.threads = options.threads;
-  batch_options.isa = options.isa;
+Solution<T> solve_batch(const PairBatch<T>& pairs, const Request& request,
+                        const BatchOptions& options) {
+  Solution<T> solution = sized_solution<T>(pairs.size(), request);
+  solution.accuracy = options.accuracy;
   const Stopwatch stopwatch;
-  solution.report = contact_function_batch(
-      pairs.view(), {solution.mu2.data(), solution.lambda.data(), solution.status.data()},
-      batch_options);
+  if (request.mode == Mode::overlap)
+    solution.report = overlap_batch(pairs.view(), {solution.overlap.data(), solution.status.data()},
+                                    options, request.cutoff);
+  else
+    solution.report = contact_function_batch(pairs.view(), contact_outputs(solution), options);
   solution.seconds = stopwatch.seconds();
   return solution;
 }
 
 template <class T>
-Solution<T> solve_reference(const PairBatch<T>& pairs, int threads) {
+Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, int threads) {
   const std::ptrdiff_t count = std::ptrdiff_t(pairs.size());
-  Solution<T> solution = sized_solution<T>(pairs.size());
+  Solution<T> solution = sized_solution<T>(pairs.size(), request);
   solution.reference_path = true;
   solution.report.pairs = pairs.size();
   solution.report.threads = resolve_thread_count(threads);
+  const ContactOutputs<T> out = contact_outputs(solution);
+  std::uint8_t* const overlap = data_or_null(solution.overlap);
+  const bool geometry = out.contact_point[0] || out.normal[0] || out.gradient[0];
+  const double cutoff_mu2 = request.cutoff * request.cutoff;
   std::size_t counts[status_count] = {};
+  std::size_t evaluations = 0, overlapping = 0;
 
   const Stopwatch stopwatch;
   // Pairs differ in cost (bisection steps, invalid input), hence dynamic.
 #pragma omp parallel for schedule(dynamic, 1024) num_threads(solution.report.threads) \
-    reduction(+ : counts[:status_count])
-  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    reduction(+ : counts[:status_count], evaluations, overlapping)
+  for (std::ptrdiff_t signed_i = 0; signed_i < count; ++signed_i) {
+    const std::size_t i = std::size_t(signed_i);
     T r12[3], q1[6], q2[6];
-    pairs.get(std::size_t(i), r12, q1, q2);
+    pairs.get(i, r12, q1, q2);
     const ContactResult<T> result = contact_function<T>(r12, q1, q2);
-    solution.mu2[std::size_t(i)] = result.mu2;
-    solution.lambda[std::size_t(i)] = result.lambda;
-    solution.status[std::size_t(i)] = result.status;
+    const bool valid = is_valid(result.status);
     ++counts[int(result.status)];
+    evaluations += std::size_t(result.iterations);
+    if (out.mu2) out.mu2[i] = result.mu2;
+    if (out.lambda) out.lambda[i] = result.lambda;
+    if (out.status) out.status[i] = result.status;
+    if (geometry)
+      store_geometry(
+          out, i,
+          valid ? contact_geometry<T>(r12, q1, q2, result.lambda) : undefined_geometry<T>());
+    if (overlap) {
+      overlap[i] = valid && double(result.mu2) < cutoff_mu2;
+      overlapping += overlap[i];
+    }
   }
   solution.seconds = stopwatch.seconds();
 
@@ -94,6 +187,8 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, int threads) {
     solution.report.status_counts[s] = counts[s];
     if (!is_valid(Status(s))) solution.report.invalid += counts[s];
   }
+  solution.report.overlapping = overlapping;
+  solution.report.mean_evaluations = count ? double(evaluations) / double(count) : 0;
   return solution;
 }
 
@@ -113,10 +208,11 @@ PairBatch<To> convert_pairs(const PairBatch<From>& pairs) {
 
 template struct Solution<double>;
 template struct Solution<float>;
-template Solution<double> solve_batch(const PairBatch<double>&, const SolverOptions&);
-template Solution<float> solve_batch(const PairBatch<float>&, const SolverOptions&);
-template Solution<double> solve_reference(const PairBatch<double>&, int);
-template Solution<float> solve_reference(const PairBatch<float>&, int);
+template Solution<double> solve_batch(const PairBatch<double>&, const Request&,
+                                      const BatchOptions&);
+template Solution<float> solve_batch(const PairBatch<float>&, const Request&, const BatchOptions&);
+template Solution<double> solve_reference(const PairBatch<double>&, const Request&, int);
+template Solution<float> solve_reference(const PairBatch<float>&, const Request&, int);
 template PairBatch<float> convert_pairs(const PairBatch<double>&);
 template PairBatch<double> convert_pairs(const PairBatch<float>&);
 

@@ -156,7 +156,9 @@ std::string describe_status_counts(const BatchReport& report) {
 
 std::string status_code_table() {
   constexpr std::size_t description_column = 31, width = 79;
-  std::string text = "Status codes (third column of 'pwcontact contact' output):\n";
+  std::string text =
+      "Status codes (the status column of 'pwcontact contact' output; with --scalar\n"
+      "every valid answer is the reference path's own, status 0):\n";
   for (int s = 0; s < status_count; ++s) {
     std::string row = "  " + std::to_string(s) + "  " + status_name(Status(s));
     row.resize(std::max(description_column, row.size() + 2), ' ');

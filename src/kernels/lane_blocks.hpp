@@ -284,35 +284,75 @@ PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at, const xs
   for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = Out(lanes[l]);
 }
 
-// Writes a status per lane: `ok` where `finished`, needs_fallback elsewhere.
+
+// Writes one byte per lane: `yes` where `flag`, `no` elsewhere.
 template <class Arch, class T>
-PWCONTACT_INLINE void write_statuses(Status* target, const LanePositions& at,
-                           const xsimd::batch_bool<T, Arch>& finished) {
+PWCONTACT_INLINE void write_flags(std::uint8_t* target, const LanePositions& at,
+                                  const xsimd::batch_bool<T, Arch>& flag, std::uint8_t yes,
+                                  std::uint8_t no) {
   constexpr std::size_t W = xsimd::batch<T, Arch>::size;
-  static_assert(static_cast<std::uint8_t>(Status::ok) == 0 &&
-                static_cast<std::uint8_t>(needs_fallback) == 0xFF);
   if constexpr (is_avx512<Arch>) {
     if (!at.index && at.real == W) {
-      // One byte per lane from the mask: 0xFF where not finished.
-      const __m128i bytes = _mm_movm_epi8(static_cast<__mmask16>(~finished.data));
+      const __m128i bytes = _mm_mask_blend_epi8(static_cast<__mmask16>(flag.data),
+                                                _mm_set1_epi8(char(no)), _mm_set1_epi8(char(yes)));
       if constexpr (W == 16) _mm_storeu_si128(reinterpret_cast<__m128i*>(target + at.base), bytes);
       else _mm_storel_epi64(reinterpret_cast<__m128i*>(target + at.base), bytes);
       return;
     }
   }
   bool lanes[W];
-  finished.store_unaligned(lanes);
-  for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = lanes[l] ? Status::ok : needs_fallback;
+  flag.store_unaligned(lanes);
+  for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = lanes[l] ? yes : no;
+}
+
+// How many lanes are set (padding lanes are never set by the callers).
+template <class Arch, class T>
+PWCONTACT_INLINE std::uint64_t count_lanes(const xsimd::batch_bool<T, Arch>& flag) {
+  if constexpr (is_avx512<Arch>) {
+    return std::uint64_t(__builtin_popcount(unsigned(flag.data)));
+  } else {
+    constexpr std::size_t W = xsimd::batch<T, Arch>::size;
+    bool lanes[W];
+    flag.store_unaligned(lanes);
+    std::uint64_t n = 0;
+    for (std::size_t l = 0; l < W; ++l) n += lanes[l];
+    return n;
+  }
+}
+
+// Writes a status per lane: `ok` where `finished`, needs_fallback elsewhere.
+template <class Arch, class T>
+PWCONTACT_INLINE void write_statuses(Status* target, const LanePositions& at,
+                                     const xsimd::batch_bool<T, Arch>& finished) {
+  write_flags<Arch, T>(reinterpret_cast<std::uint8_t*>(target), at, finished,
+                       std::uint8_t(Status::ok), std::uint8_t(needs_fallback));
+}
+
+// Asks for the inputs of [i, i + count) to be brought into cache. For work
+// that is light per pair (the overlap prefilter) fifteen input streams are
+// more than the hardware prefetcher keeps ahead of (measured: the prefilter
+// then waits on memory most of the time); heavier work hides the latency.
+template <class Arch, class In>
+PWCONTACT_INLINE void prefetch_pairs(const PairSpan<In>& in, std::size_t i, std::size_t count,
+                                     std::size_t n) {
+  constexpr std::size_t line = 64 / sizeof(In);
+  const std::size_t end = i + count < n ? i + count : n;
+  for (std::size_t j = i; j < end; j += line)
+    for (int k = 0; k < pair_components; ++k) __builtin_prefetch(component(in, k) + j);
 }
 
 // Runs `body(span, from, position, real)` over a span of n pairs in blocks:
 // `real` pairs loaded from position `from` of `span`, answered at chunk
 // position `position`; the last block is padded (PaddedTail) so that nothing
 // is read past n.
-template <std::size_t Block, class In, class Body>
-PWCONTACT_INLINE void for_each_block(const PairSpan<In>& in, std::size_t n, Body&& body) {
+template <class Arch, std::size_t Block, class In, class Body>
+PWCONTACT_INLINE void for_each_block(const PairSpan<In>& in, std::size_t n, Body&& body,
+                                     std::size_t prefetch_blocks = 0) {
   std::size_t i = 0;
-  for (; i + Block <= n; i += Block) body(in, i, i, Block);
+  for (; i + Block <= n; i += Block) {
+    if (prefetch_blocks) prefetch_pairs<Arch>(in, i + prefetch_blocks * Block, Block, n);
+    body(in, i, i, Block);
+  }
   if (i < n) {
     const PaddedTail<In, Block> tail(in, i, n - i);
     body(tail.span, 0, i, n - i);

@@ -34,9 +34,12 @@ namespace pwcontact::kernels {
 template <class T>
 inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>::epsilon();
 
-// Float steps a mixed-precision overlap solve takes before the undecided lanes
-// go to double lanes.
-inline constexpr int mixed_overlap_float_steps = 1;
+// The cheap first pass decides only lanes whose rounding amplification is at
+// most this (see OverlapBlock::prefilter), with the margin that follows.
+template <class T>
+inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e4) : T(16);
+// How far ahead the prefilter asks for its inputs, in blocks (measured).
+inline constexpr std::size_t prefilter_prefetch_blocks = 8;
 
 // What an undecided lane keeps between passes besides its pair: lambda, the
 // bracket with f and g at its ends (for the tangents), the certified bounds
@@ -98,7 +101,53 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       // Coincident centres: mu^2 = 0 < cutoff^2.
       const M coincident = !((s0 > B(0)) & (s1 > B(0)));
       upper_[u] = xsimd::select(coincident, B(0), upper_[u]);
-      decide(u, out, keep, counters_.decided_by_prefilter);
+      decide(u, out, keep, &ChunkCounters::decided_by_prefilter);
+    }
+  }
+
+  // The first, cheap pass: the extents along r12 from adjugates and
+  // determinants instead of factorisations (no division per pivot), with a
+  // margin that holds when every ratio that amplifies rounding (the
+  // Hadamard ratio a0 a3 a5 / det of each Q, and |Q||r||r| / r^T Q r) is at
+  // most prefilter_conditioning; other lanes, and all the undecided ones, are
+  // left (status needs_fallback) to the accurate solve (start() and the
+  // passes after it), which also makes the exact validity checks.
+  template <class In>
+  PWCONTACT_INLINE void prefilter(const PairSpan<In>& in, std::size_t from, std::size_t position,
+                                  std::size_t real, const OverlapSpan& out) {
+    const B conditioning(prefilter_conditioning<T>);
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      this->load(in, from, position, nullptr, real, u);
+      const PairLanes<B>& p = pair_[u];
+      const Adjugate<B> a1(p.q1), a2(p.q2);
+      const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
+      // For positive definite Q, |Q_jk| <= (Q_jj + Q_kk) / 2, so |r|^T |Q| |r|
+      // is at most (sum_j Q_jj |r_j|) (sum_k |r_k|).
+      const B abs_sum = xsimd::abs(p.r[0]) + xsimd::abs(p.r[1]) + xsimd::abs(p.r[2]);
+      const B spread1 = (p.q1[0] * xsimd::abs(p.r[0]) + p.q1[3] * xsimd::abs(p.r[1]) +
+                         p.q1[5] * xsimd::abs(p.r[2])) * abs_sum;
+      const B spread2 = (p.q2[0] * xsimd::abs(p.r[0]) + p.q2[3] * xsimd::abs(p.r[1]) +
+                         p.q2[5] * xsimd::abs(p.r[2])) * abs_sum;
+      const M conditioned =
+          (p.q1[0] * p.q1[3] * p.q1[5] <= conditioning * a1.det) &
+          (p.q2[0] * p.q2[3] * p.q2[5] <= conditioning * a2.det) &
+          (spread1 <= conditioning * h1) & (spread2 <= conditioning * h2);
+      live_[u] = this->real_lanes(u) & all_finite(p) & a1.positive_definite(p.q1) &
+                 a2.positive_definite(p.q2) & conditioned;
+      const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);
+      // Radial extents: mu^2 <= 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 with
+      // s_i = n_i / det_i, n_i = r^T adj(Qi) r; support extents:
+      // mu^2 >= |r|^4 / (sqrt(h1) + sqrt(h2))^2.
+      const B n1 = a1.form(p.r), n2 = a2.form(p.r);
+      const B extents = xsimd::sqrt(n1 * a2.det) + xsimd::sqrt(n2 * a1.det);
+      const B radial = n1 * n2 / (extents * extents);
+      const B rr = dot3(p.r, p.r);
+      const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
+      lower_[u] = rr * rr / (support * support) * (B(1) - margin);
+      upper_[u] = radial * (B(1) + margin);
+      // Coincident centres: mu^2 = 0 < cutoff^2.
+      upper_[u] = xsimd::select(rr == B(0), B(0), upper_[u]);
+      decide_only(u, out);
     }
   }
 
@@ -136,30 +185,30 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
       lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
       upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
-      decide(u, out, keep, counters_.decided_by_certificate);
+      decide(u, out, keep, &ChunkCounters::decided_by_certificate);
     }
   }
 
  private:
-  // Writes the lanes the bounds decide (live ones only), counts them, and
-  // keeps the undecided ones or leaves them to the reference path.
-  PWCONTACT_INLINE void decide(int u, const OverlapSpan& out, bool keep, std::uint64_t& decided_count) {
+  // Writes the lanes the bounds decide (live ones only) and counts them;
+  // returns the decided lanes.
+  PWCONTACT_INLINE M decide_only(int u, const OverlapSpan& out,
+                                 std::uint64_t ChunkCounters::*count = &ChunkCounters::decided_by_prefilter) {
     const B cutoff(cutoff_);
     const M overlapping = live_[u] & (upper_[u] < cutoff);
-    const M apart = live_[u] & (lower_[u] >= cutoff);
-    const M decided = overlapping | apart;
-    bool overlap_lanes[W], decided_lanes[W];
-    overlapping.store_unaligned(overlap_lanes);
-    decided.store_unaligned(decided_lanes);
+    const M decided = overlapping | (live_[u] & (lower_[u] >= cutoff));
     const LanePositions& at = at_[u];
-    std::uint64_t n = 0;
-    for (std::size_t l = 0; l < at.real; ++l) {
-      const std::size_t i = at[l];
-      out.overlap[i] = overlap_lanes[l] ? 1 : 0;
-      out.status[i] = decided_lanes[l] ? Status::ok : needs_fallback;
-      n += decided_lanes[l];
-    }
-    decided_count += n;
+    write_flags<Arch, T>(out.overlap, at, overlapping, 1, 0);
+    write_statuses<Arch, T>(out.status, at, decided);
+    counters_.*count += count_lanes<Arch, T>(decided);
+    return decided;
+  }
+
+  // decide_only, then keeps the undecided lanes or leaves them to the
+  // reference path.
+  PWCONTACT_INLINE void decide(int u, const OverlapSpan& out, bool keep,
+                               std::uint64_t ChunkCounters::*count) {
+    const M decided = decide_only(u, out, count);
     if (keep) {
       const B values[OverlapKept<T>::arrays] = {
           pair_[u].r[0],  pair_[u].r[1],  pair_[u].r[2],  pair_[u].q1[0], pair_[u].q1[1],
@@ -167,7 +216,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
           pair_[u].q2[1], pair_[u].q2[2], pair_[u].q2[3], pair_[u].q2[4], pair_[u].q2[5],
           lambda_[u],     lo_[u],         hi_[u],         f_lo_[u],       g_lo_[u],
           f_hi_[u],       g_hi_[u],       lower_[u],      upper_[u],      margin_[u]};
-      keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided, values, at);
+      keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided, values, at_[u]);
     }
   }
 
@@ -221,7 +270,7 @@ template <class Arch, class T, class In>
 void solve_overlap_on(const PairSpan<In>& in, const std::uint32_t* index, std::size_t n,
                       const OverlapSpan& out, const ChunkSettings& settings, OverlapKept<T>& kept,
                       ChunkCounters& counters) {
-  for_each_block<OverlapBlock<Arch, T>::size>(
+  for_each_block<Arch, OverlapBlock<Arch, T>::size>(
       in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
         overlap_first_block<Arch, T, In>(span, from, position, index ? index + position : nullptr,
                                          real, out, settings, counters, kept);
@@ -229,36 +278,33 @@ void solve_overlap_on(const PairSpan<In>& in, const std::uint32_t* index, std::s
   later_overlap_passes<Arch, T>(kept, out, settings, counters);
 }
 
+// A block of the cheap first pass.
 template <class Arch, class T, class In>
-void solve_overlap(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
-                          const ChunkSettings& settings, const Scratch& scratch,
-                          ChunkCounters& counters) {
-  OverlapKept<T> kept(scratch, 0);
-  solve_overlap_on<Arch, T, In>(in, nullptr, n, out, settings, kept, counters);
+__attribute__((noinline)) void overlap_prefilter_block(const PairSpan<In>& span, std::size_t from,
+                                                       std::size_t position, std::size_t real,
+                                                       const OverlapSpan& out,
+                                                       const ChunkSettings& settings,
+                                                       ChunkCounters& counters, OverlapKept<T>& kept) {
+  OverlapBlock<Arch, T> block(settings, counters, kept);
+  block.prefilter(span, from, position, real, out);
 }
 
-// Mixed precision: float lanes decide what they can with float margins, the
-// rest is gathered and decided by double lanes.
-template <class Arch>
-void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std::size_t n,
-                                const ChunkSettings& settings, const Scratch& scratch,
-                                ChunkCounters& counters) {
-  // The float lanes keep their undecided lanes for one step, then hand over.
-  ChunkSettings float_settings = settings;
-  float_settings.iterations = mixed_overlap_float_steps;
-  OverlapKept<float> float_kept(scratch, 0);
-  solve_overlap_on<Arch, float, double>(in, nullptr, n, out, float_settings, float_kept, counters);
-
-  // Gather the pairs still undecided (status needs_fallback) after the float
-  // lanes, in the arrays beyond those the double lanes keep.
-  OverlapKept<double> kept(scratch, 0);
+// Copies the pairs the first pass left (status needs_fallback) into the
+// scratch arrays beyond the kept lanes', with their chunk positions.
+template <class Arch, class In>
+PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const Status* status,
+                                  const Scratch& scratch, std::uint32_t*& positions,
+                                  std::size_t& count) {
   const std::size_t stride = scratch.capacity + scratch_padding_pairs;
-  double* const gathered = static_cast<double*>(scratch.memory) + OverlapKept<double>::footprint * stride;
-  std::uint32_t* const positions = reinterpret_cast<std::uint32_t*>(gathered + pair_components * stride);
-  std::size_t count = 0;
+  double* const gathered =
+      static_cast<double*>(scratch.memory) + OverlapKept<double>::footprint * stride;
+  static_assert(OverlapKept<double>::footprint + pair_components + 1 <= scratch_values_per_pair);
+  positions = reinterpret_cast<std::uint32_t*>(gathered + pair_components * stride);
+  count = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (out.status[i] != needs_fallback) continue;
-    for (int k = 0; k < pair_components; ++k) gathered[std::size_t(k) * stride + count] = component(in, k)[i];
+    if (status[i] != needs_fallback) continue;
+    for (int k = 0; k < pair_components; ++k)
+      gathered[std::size_t(k) * stride + count] = double(component(in, k)[i]);
     positions[count++] = std::uint32_t(i);
   }
   PairSpan<double> span;
@@ -268,7 +314,45 @@ void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std
     else if (k < 9) span.q1[k - 3] = column;
     else span.q2[k - 9] = column;
   }
-  solve_overlap_on<Arch, double, double>(span, positions, count, out, settings, kept, counters);
+  return span;
+}
+
+// Overlap only: the cheap first pass in arithmetic Cheap, then the accurate
+// solve in arithmetic T on the pairs it left, gathered (in double: float
+// pairs are exact in it, and T narrows them again on loading).
+template <class Arch, class Cheap, class T, class In>
+void solve_overlap_in_two_passes(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
+                                 const ChunkSettings& settings, const Scratch& scratch,
+                                 ChunkCounters& counters) {
+  {
+    OverlapKept<Cheap> unused(scratch, 0);  // the first pass keeps nothing
+    for_each_block<Arch, OverlapBlock<Arch, Cheap>::size>(
+        in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+          overlap_prefilter_block<Arch, Cheap, In>(span, from, position, real, out, settings,
+                                                   counters, unused);
+        },
+        prefilter_prefetch_blocks);
+  }
+  std::uint32_t* positions = nullptr;
+  std::size_t count = 0;
+  const PairSpan<double> rest = gather_undecided<Arch>(in, n, out.status, scratch, positions, count);
+  OverlapKept<T> kept(scratch, 0);
+  solve_overlap_on<Arch, T, double>(rest, positions, count, out, settings, kept, counters);
+}
+
+template <class Arch, class T, class In>
+void solve_overlap(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
+                   const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
+  solve_overlap_in_two_passes<Arch, T, T, In>(in, out, n, settings, scratch, counters);
+}
+
+// Mixed precision: the cheap pass in float lanes (twice as many per register,
+// with float margins), the accurate solve in double.
+template <class Arch>
+void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std::size_t n,
+                         const ChunkSettings& settings, const Scratch& scratch,
+                         ChunkCounters& counters) {
+  solve_overlap_in_two_passes<Arch, float, double, double>(in, out, n, settings, scratch, counters);
 }
 
 }  // namespace pwcontact::kernels
