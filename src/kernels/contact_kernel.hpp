@@ -189,25 +189,31 @@ class FullBlock : public LaneGroups<Arch, T> {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
-      // Initial guess exact for spheres: lambda = rho1 / (rho1 + rho2), rho_i
-      // the distance from centre i to its surface along r12, from
-      // s_i = r^T Qi^-1 r (f'(0) = s1, -f'(1) = s2; see the reference path):
-      // lambda = 1 / (1 + sqrt(s1 / s2)). A guess needs no precision, so the
-      // s_i come from adjugates and determinants (one division for both,
-      // instead of six for two factorisations); where round-off spoils them
-      // (very elongated shapes), the guess falls back to 1/2.
-      const Adjugate<B> adj1(p.q1), adj2(p.q2);
-      const B ratio = (adj1.form(p.r) * adj2.det) / (adj2.form(p.r) * adj1.det);
-      const B guess = B(1) / (B(1) + xsimd::sqrt(ratio));
-      lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+      lambda_[u] = initial_guess(p);
       lo_[u] = B(0);
       hi_[u] = B(1);
       // Positive definiteness from the leading principal minors (Sylvester).
-      live_[u] = this->real_lanes(u) & all_finite(p) & adj1.positive_definite(p.q1) &
-                 adj2.positive_definite(p.q2);
+      live_[u] = this->real_lanes(u) & all_finite(p) &
+                 Adjugate<B>(p.q1).positive_definite(p.q1) & Adjugate<B>(p.q2).positive_definite(p.q2);
       // Coincident centres: mu^2 = 0.
       coincident_[u] = live_[u] & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
+    }
+  }
+
+  // The float block of a mixed-precision solve: only the initial guess and
+  // the bracket; the double block that follows makes the checks.
+  template <class In>
+  PWCONTACT_INLINE void start_guess(const PairSpan<In>& in, std::size_t from, std::size_t position,
+                                    std::size_t real) {
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      this->load(in, from, position, nullptr, real, u);
+      lambda_[u] = initial_guess(pair_[u]);
+      lo_[u] = B(0);
+      hi_[u] = B(1);
+      live_[u] = this->real_lanes(u);
+      coincident_[u] = B(0) != B(0);
+      lambda_coincident_[u] = B(0);
     }
   }
 
@@ -337,6 +343,20 @@ class FullBlock : public LaneGroups<Arch, T> {
   }
 
  private:
+  // Initial guess exact for spheres: lambda = rho1 / (rho1 + rho2), rho_i the
+  // distance from centre i to its surface along r12, from s_i = r^T Qi^-1 r
+  // (f'(0) = s1, -f'(1) = s2; see the reference path):
+  // lambda = 1 / (1 + sqrt(s1 / s2)). A guess needs no precision, so the s_i
+  // come from adjugates and determinants (one division for both, instead of
+  // six for two factorisations); where round-off spoils them (very elongated
+  // shapes), the guess falls back to 1/2.
+  PWCONTACT_INLINE static B initial_guess(const PairLanes<B>& p) {
+    const Adjugate<B> adj1(p.q1), adj2(p.q2);
+    const B ratio = (adj1.form(p.r) * adj2.det) / (adj2.form(p.r) * adj1.det);
+    const B guess = B(1) / (B(1) + xsimd::sqrt(ratio));
+    return xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+  }
+
   // Appends the lanes of group u selected by `which` to the kept lanes.
   PWCONTACT_INLINE void keep_registers(int u, const M& which) {
     B values[FullKept<T>::arrays];
@@ -410,7 +430,7 @@ __attribute__((noinline)) void mixed_block(const PairSpan<double>& span, std::si
   alignas(64) double lambda_start[2 * half];
   {
     FullBlock<Arch, float> lanes(settings, counters, never_kept);  // they only hand lambda over
-    lanes.start(span, from, position, real);
+    lanes.start_guess(span, from, position, real);
     lanes.iterate(float_steps);
     lanes.store_lambda(lambda_start);
   }

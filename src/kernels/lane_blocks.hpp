@@ -285,9 +285,10 @@ PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at, const xs
 }
 
 
-// Writes one byte per lane: `yes` where `flag`, `no` elsewhere.
+// Writes one byte for each lane in `which`: `yes` where `flag`, `no` elsewhere.
 template <class Arch, class T>
 PWCONTACT_INLINE void write_flags(std::uint8_t* target, const LanePositions& at,
+                                  const xsimd::batch_bool<T, Arch>& which,
                                   const xsimd::batch_bool<T, Arch>& flag, std::uint8_t yes,
                                   std::uint8_t no) {
   constexpr std::size_t W = xsimd::batch<T, Arch>::size;
@@ -295,14 +296,15 @@ PWCONTACT_INLINE void write_flags(std::uint8_t* target, const LanePositions& at,
     if (!at.index && at.real == W) {
       const __m128i bytes = _mm_mask_blend_epi8(static_cast<__mmask16>(flag.data),
                                                 _mm_set1_epi8(char(no)), _mm_set1_epi8(char(yes)));
-      if constexpr (W == 16) _mm_storeu_si128(reinterpret_cast<__m128i*>(target + at.base), bytes);
-      else _mm_storel_epi64(reinterpret_cast<__m128i*>(target + at.base), bytes);
+      _mm_mask_storeu_epi8(target + at.base, static_cast<__mmask16>(which.data), bytes);
       return;
     }
   }
-  bool lanes[W];
+  bool write[W], lanes[W];
+  which.store_unaligned(write);
   flag.store_unaligned(lanes);
-  for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = lanes[l] ? yes : no;
+  for (std::size_t l = 0; l < at.real; ++l)
+    if (write[l]) target[at[l]] = lanes[l] ? yes : no;
 }
 
 // How many lanes are set (padding lanes are never set by the callers).
@@ -324,7 +326,7 @@ PWCONTACT_INLINE std::uint64_t count_lanes(const xsimd::batch_bool<T, Arch>& fla
 template <class Arch, class T>
 PWCONTACT_INLINE void write_statuses(Status* target, const LanePositions& at,
                                      const xsimd::batch_bool<T, Arch>& finished) {
-  write_flags<Arch, T>(reinterpret_cast<std::uint8_t*>(target), at, finished,
+  write_flags<Arch, T>(reinterpret_cast<std::uint8_t*>(target), at, finished | !finished, finished,
                        std::uint8_t(Status::ok), std::uint8_t(needs_fallback));
 }
 

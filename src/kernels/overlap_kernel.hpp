@@ -34,10 +34,13 @@ namespace pwcontact::kernels {
 template <class T>
 inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>::epsilon();
 
-// The cheap first pass decides only lanes whose rounding amplification is at
-// most this (see OverlapBlock::prefilter), with the margin that follows.
+// The cheap first pass decides only lanes whose Q both have tr^3 / det (a
+// bound on the condition number) at most this (see OverlapBlock::prefilter),
+// with a margin of 256 eps times it: double up to aspect ratios ~100, float
+// up to the random family's shapes (semi-axes within a factor 4: tr^3 / det
+// up to 140).
 template <class T>
-inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e4) : T(16);
+inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e6) : T(256);
 // How far ahead the prefilter asks for its inputs, in blocks (measured).
 inline constexpr std::size_t prefilter_prefetch_blocks = 8;
 
@@ -101,17 +104,23 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       // Coincident centres: mu^2 = 0 < cutoff^2.
       const M coincident = !((s0 > B(0)) & (s1 > B(0)));
       upper_[u] = xsimd::select(coincident, B(0), upper_[u]);
-      decide(u, out, keep, &ChunkCounters::decided_by_prefilter);
+      live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter);
     }
+    // The lanes left take their first evaluation right away, before any
+    // packing: most of them are decided by it.
+    step(out, keep);
   }
 
   // The first, cheap pass: the extents along r12 from adjugates and
-  // determinants instead of factorisations (no division per pivot), with a
-  // margin that holds when every ratio that amplifies rounding (the
-  // Hadamard ratio a0 a3 a5 / det of each Q, and |Q||r||r| / r^T Q r) is at
-  // most prefilter_conditioning; other lanes, and all the undecided ones, are
-  // left (status needs_fallback) to the accurate solve (start() and the
-  // passes after it), which also makes the exact validity checks.
+  // determinants instead of factorisations (no division per pivot). Its
+  // rounding errors are bounded through the condition number: for positive
+  // definite Q, lambda_max <= tr Q and lambda_min >= det Q / lambda_max^2, so
+  // cond Q <= tr^3 / det; with tr^3 <= K det, the relative errors of
+  // r^T Q r, r^T adj(Q) r and det Q are a few tens of eps K (each cofactor
+  // errs by ~eps lambda_max^2, while r^T adj(Q) r >= det |r|^2 / lambda_max).
+  // Lanes beyond K, and all the undecided ones, are left (status
+  // needs_fallback) to the accurate solve (start() and the passes after it),
+  // which also makes the exact validity checks.
   template <class In>
   PWCONTACT_INLINE void prefilter(const PairSpan<In>& in, std::size_t from, std::size_t position,
                                   std::size_t real, const OverlapSpan& out) {
@@ -121,17 +130,9 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const PairLanes<B>& p = pair_[u];
       const Adjugate<B> a1(p.q1), a2(p.q2);
       const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
-      // For positive definite Q, |Q_jk| <= (Q_jj + Q_kk) / 2, so |r|^T |Q| |r|
-      // is at most (sum_j Q_jj |r_j|) (sum_k |r_k|).
-      const B abs_sum = xsimd::abs(p.r[0]) + xsimd::abs(p.r[1]) + xsimd::abs(p.r[2]);
-      const B spread1 = (p.q1[0] * xsimd::abs(p.r[0]) + p.q1[3] * xsimd::abs(p.r[1]) +
-                         p.q1[5] * xsimd::abs(p.r[2])) * abs_sum;
-      const B spread2 = (p.q2[0] * xsimd::abs(p.r[0]) + p.q2[3] * xsimd::abs(p.r[1]) +
-                         p.q2[5] * xsimd::abs(p.r[2])) * abs_sum;
-      const M conditioned =
-          (p.q1[0] * p.q1[3] * p.q1[5] <= conditioning * a1.det) &
-          (p.q2[0] * p.q2[3] * p.q2[5] <= conditioning * a2.det) &
-          (spread1 <= conditioning * h1) & (spread2 <= conditioning * h2);
+      const B t1 = p.q1[0] + p.q1[3] + p.q1[5], t2 = p.q2[0] + p.q2[3] + p.q2[5];
+      const M conditioned = (t1 * t1 * t1 <= conditioning * a1.det) &
+                            (t2 * t2 * t2 <= conditioning * a2.det);
       live_[u] = this->real_lanes(u) & all_finite(p) & a1.positive_definite(p.q1) &
                  a2.positive_definite(p.q2) & conditioned;
       const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);
@@ -147,7 +148,25 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       upper_[u] = radial * (B(1) + margin);
       // Coincident centres: mu^2 = 0 < cutoff^2.
       upper_[u] = xsimd::select(rr == B(0), B(0), upper_[u]);
-      decide_only(u, out);
+      live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter, true);
+      if (xsimd::none(live_[u])) continue;
+
+      // One Newton evaluation for the lanes left, from the radial guess:
+      // f(lambda) from below, and from above the tangents at the new bracket
+      // ends (one of them at lambda = 0 or 1, with slope s1 = n1 / det1 or
+      // s2 = n2 / det2, whose rounding the margin already covers).
+      const B slope0 = n1 / a1.det, slope1 = n2 / a2.det;
+      lambda_[u] = xsimd::sqrt(n2 * a1.det) / extents;
+      lo_[u] = B(0);
+      hi_[u] = B(1);
+      f_lo_[u] = B(0);
+      g_lo_[u] = -slope0;
+      f_hi_[u] = B(0);
+      g_hi_[u] = slope1;
+      margin_[u] = margin;
+      tighten(u);
+      counters_.lane_evaluations += at_[u].real;
+      decide_only(u, out, &ChunkCounters::decided_by_certificate);
     }
   }
 
@@ -170,36 +189,45 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   PWCONTACT_INLINE void step(const OverlapSpan& out, bool keep) {
     this->count_evaluations(1);
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-      const Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
-      const M above = e.g > B(0), below = e.g < B(0);
-      f_hi_[u] = xsimd::select(above, e.f, f_hi_[u]);
-      g_hi_[u] = xsimd::select(above, e.g, g_hi_[u]);
-      f_lo_[u] = xsimd::select(below, e.f, f_lo_[u]);
-      g_lo_[u] = xsimd::select(below, e.g, g_lo_[u]);
-      this->advance(e, u);
-      margin_[u] = xsimd::max(margin_[u],
-                              B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
-      // Where the tangents at lo and hi cross: f_lo - g_lo (x - lo) =
-      // f_hi - g_hi (x - hi), with g_lo < 0 < g_hi.
-      const B x = (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
-      const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
-      lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
-      upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
+      tighten(u);
       decide(u, out, keep, &ChunkCounters::decided_by_certificate);
     }
   }
 
  private:
-  // Writes the lanes the bounds decide (live ones only) and counts them;
-  // returns the decided lanes.
-  PWCONTACT_INLINE M decide_only(int u, const OverlapSpan& out,
-                                 std::uint64_t ChunkCounters::*count = &ChunkCounters::decided_by_prefilter) {
+  // One evaluation at lambda: f bounds mu^2 from below, and the tangents of
+  // the concave f at the bracket ends, where they cross, from above.
+  PWCONTACT_INLINE void tighten(int u) {
+    const Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
+    const M above = e.g > B(0), below = e.g < B(0);
+    f_hi_[u] = xsimd::select(above, e.f, f_hi_[u]);
+    g_hi_[u] = xsimd::select(above, e.g, g_hi_[u]);
+    f_lo_[u] = xsimd::select(below, e.f, f_lo_[u]);
+    g_lo_[u] = xsimd::select(below, e.g, g_lo_[u]);
+    this->advance(e, u);
+    margin_[u] = xsimd::max(margin_[u], B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
+    // Where the tangents at lo and hi cross: f_lo - g_lo (x - lo) =
+    // f_hi - g_hi (x - hi), with g_lo < 0 < g_hi.
+    const B x = (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
+    const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
+    lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
+    upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
+  }
+
+  // Writes the live lanes' answers (decided or not: status ok or
+  // needs_fallback), counts the decided ones and returns them. Lanes that are
+  // not live keep what an earlier pass wrote, except in the first pass,
+  // which writes every real lane.
+  PWCONTACT_INLINE M decide_only(int u, const OverlapSpan& out, std::uint64_t ChunkCounters::*count,
+                                 bool every_real_lane = false) {
     const B cutoff(cutoff_);
     const M overlapping = live_[u] & (upper_[u] < cutoff);
     const M decided = overlapping | (live_[u] & (lower_[u] >= cutoff));
     const LanePositions& at = at_[u];
-    write_flags<Arch, T>(out.overlap, at, overlapping, 1, 0);
-    write_statuses<Arch, T>(out.status, at, decided);
+    const M written = every_real_lane ? this->real_lanes(u) : live_[u];
+    write_flags<Arch, T>(out.overlap, at, written, overlapping, 1, 0);
+    write_flags<Arch, T>(reinterpret_cast<std::uint8_t*>(out.status), at, written, decided,
+                         std::uint8_t(Status::ok), std::uint8_t(needs_fallback));
     counters_.*count += count_lanes<Arch, T>(decided);
     return decided;
   }
