@@ -57,6 +57,21 @@ ErrorStatistics relative_errors(const std::vector<T>& mu2, const std::vector<lon
   return stats;
 }
 
+Misclassification misclassified(const std::vector<std::uint8_t>& overlapping,
+                                const std::vector<long double>& oracle) {
+  Misclassification m;
+  for (std::size_t i = 0; i < oracle.size(); ++i) {
+    if (std::isnan(oracle[i])) continue;
+    ++m.compared;
+    if ((overlapping[i] != 0) == (oracle[i] < 1)) continue;
+    if (std::fabs(oracle[i] - 1) > tangency_tolerance)
+      ++m.beyond;
+    else
+      ++m.within;
+  }
+  return m;
+}
+
 template std::vector<long double> oracle_mu2(const PairBatch<double>&);
 template std::vector<long double> oracle_mu2(const PairBatch<float>&);
 template ErrorStatistics relative_errors(const std::vector<double>&,

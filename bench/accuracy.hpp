@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "pwcontact/batch.hpp"
@@ -29,6 +30,23 @@ struct ErrorStatistics {
 // path that silently fails cannot look accurate.
 template <class T>
 ErrorStatistics relative_errors(const std::vector<T>& mu2, const std::vector<long double>& oracle);
+
+// Within this distance of tangency, |mu^2 - 1| <= 1e-9, double precision
+// cannot be relied on to say which side a pair is on: overlap_batch promises
+// the right answer only beyond it. Misclassifications are counted on both
+// sides of it.
+inline constexpr double tangency_tolerance = 1e-9;
+
+struct Misclassification {
+  std::size_t beyond = 0;    // wrong answers with |mu^2 - 1| > tangency_tolerance: errors
+  std::size_t within = 0;    // wrong answers closer to tangency than that
+  std::size_t compared = 0;  // pairs with a valid oracle value
+};
+
+// How many of the answers "overlapping" (mu < 1, nonzero) or "apart" (0)
+// disagree with the oracle's mu^2 < 1, over the pairs the oracle solved.
+Misclassification misclassified(const std::vector<std::uint8_t>& overlapping,
+                                const std::vector<long double>& oracle);
 
 extern template std::vector<long double> oracle_mu2(const PairBatch<double>&);
 extern template std::vector<long double> oracle_mu2(const PairBatch<float>&);

@@ -1,7 +1,7 @@
 // The figures every run of pwcontact_bench ends with: each configuration's
 // throughput as a multiple of brent_baseline on the same family, the thread
-// scaling of the batch paths, and the project's speed and accuracy targets,
-// each said to be met or not.
+// scaling of the batch paths, and the project's speed and accuracy targets
+// (targets.hpp), each said to be met or not.
 #pragma once
 
 #include <benchmark/benchmark.h>
@@ -11,22 +11,9 @@
 #include <vector>
 
 #include "configuration.hpp"
+#include "measurement.hpp"
 
 namespace pwcontact::bench {
-
-// What one configuration measured: its throughput (the median over
-// repetitions when there are several) and its other counters.
-struct Measurement {
-  Configuration configuration;
-  double pairs_per_second = 0;
-  double pairs_per_second_cv = 0;  // coefficient of variation over repetitions; NaN without
-  // The fastest repetition: what the machine can do when no foreign load
-  // interferes. NaN when only aggregates were reported.
-  double best_pairs_per_second = 0;
-  std::map<std::string, double> counters;
-
-  double counter(const char* name) const;  // NaN when not reported
-};
 
 // Passes every run on, unchanged, to the display reporter Google Benchmark
 // would have used (so --benchmark_format still works) and collects the

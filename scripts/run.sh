@@ -6,19 +6,25 @@
 #   bash scripts/run.sh test          the whole test suite (Release build)
 #   bash scripts/run.sh sanitize      the whole test suite under ASan + UBSan
 #   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
+#   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
+#                                     Markdown and a gnuplot plot), labelled with the
+#                                     commit measured; to refresh the README's figures:
+#                                     --markdown=bench/results/trade.md
+#                                     --plot=bench/results/trade.png
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 job="${1:-}"
 [ $# -gt 0 ] && shift
 case "$job" in
-  demo|test|sanitize|bench) ;;
-  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench [args...]" >&2; exit 2 ;;
+  demo|test|sanitize|bench|trade) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench|trade [args...]" >&2; exit 2 ;;
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
 packages=(g++ cmake make libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
           libbenchmark-dev libboost-dev)
+[ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -49,4 +55,11 @@ case "$job" in
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_bench
     exec build/release/bench/pwcontact_bench "$@" ;;
+  trade)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target pwcontact_trade
+    label="$(git log -1 --format='commit %h of %cs' 2>/dev/null || echo 'not a git checkout')"
+    git diff --quiet HEAD -- src include 2>/dev/null || label="$label, with uncommitted changes"
+    # The caller's flags come last and override the label.
+    exec build/release/bench/pwcontact_trade "--label=$label" "$@" ;;
 esac

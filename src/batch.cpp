@@ -114,6 +114,19 @@ ScalarPair scalar_pair(const PairBatchView<T>& pairs, std::size_t i) {
   return p;
 }
 
+// Accuracy::high for the pairs the kernels leave: the reference path in long
+// double (64-bit significand), whose floor is ~2000 times below double's.
+ContactResult<double> reference_in_long_double(const ScalarPair& p) {
+  long double r[3], q1[6], q2[6];
+  for (int k = 0; k < 3; ++k) r[k] = p.r[k];
+  for (int k = 0; k < 6; ++k) {
+    q1[k] = p.q1[k];
+    q2[k] = p.q2[k];
+  }
+  const ContactResult<long double> ref = contact_function<long double>(r, q1, q2);
+  return {double(ref.mu2), double(ref.lambda), ref.status, ref.iterations};
+}
+
 template <class T>
 kernels::PairSpan<T> span_at(const PairBatchView<T>& pairs, std::size_t begin) {
   kernels::PairSpan<T> in;
@@ -215,9 +228,10 @@ kernels::OverlapKernel<T> overlap_kernel(const kernels::KernelTable& table, Prec
 // did not finish, as opposed to an invalid one).
 template <class T>
 bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
-                           Status* status, std::size_t i, unsigned bits) {
+                           Status* status, std::size_t i, unsigned bits, Accuracy accuracy) {
   const ScalarPair p = scalar_pair(pairs, i);
-  const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+  const ContactResult<double> ref = accuracy == Accuracy::high ? reference_in_long_double(p)
+                                                                : contact_function<double>(p.r, p.q1, p.q2);
   out.mu2[i] = T(ref.mu2);
   if (bits & kernels::with_lambda) out.lambda[i] = T(ref.lambda);
   if (bits & ~unsigned(kernels::with_lambda)) {
@@ -261,7 +275,7 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
     kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
     for (std::size_t i = begin; i < begin + n; ++i)
       if (status[i] == kernels::needs_fallback)
-        fallbacks += answer_with_reference(pairs, out, status, i, bits);
+        fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
   });
   count_statuses(status, pairs.size, report);
   return report;

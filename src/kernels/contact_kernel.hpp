@@ -307,8 +307,13 @@ class FullBlock : public LaneGroups<Arch, T> {
       const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f);
       const M bounded = xsimd::abs(e.g) * (hi_[u] - lo_[u]) <= B(KernelTolerance<T>::bounded_gain) * e.f;
       M done = corrected | bounded;
-      if constexpr (KernelTolerance<T>::checks_growth)
-        done = done & (growth(e.ldlt, e.q) <= B(KernelTolerance<T>::max_growth));
+      // A float lane too ill-conditioned for float goes to the reference path
+      // (in double) now: more float iterations would not help it.
+      M hopeless = B(0) != B(0);
+      if constexpr (KernelTolerance<T>::checks_growth) {
+        hopeless = growth(e.ldlt, e.q) > B(KernelTolerance<T>::max_growth);
+        done = done & !hopeless;
+      }
       const M finished = live_[u] & (done | coincident_[u]);
 
       Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}};
@@ -321,7 +326,7 @@ class FullBlock : public LaneGroups<Arch, T> {
       write_answer(out, u, e, answer.s, reported);
       write_statuses<Arch, T>(out.status, at_[u], finished);
 
-      const M unfinished = live_[u] & !finished;
+      const M unfinished = live_[u] & !finished & !hopeless;
       if (handoff == Handoff::adaptive && xsimd::any(unfinished)) {
         // A register with many unfinished lanes is packed right away (one
         // masked compress per array); one with a few leaves them by position,
