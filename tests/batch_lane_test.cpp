@@ -1,7 +1,8 @@
 // The batch path lane by lane, on every instruction set this CPU supports:
 // every lane against the scalar reference, tails, thread-count independence,
 // the report, the instruction-set override and the fallback.
-#include <cstring>
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "test_support.hpp"
@@ -122,32 +123,79 @@ TEST_P(BatchLanes, ResultsDoNotDependOnThePositionInTheBatchInFloat) {
   expect_position_changes_nothing<float>(GetParam());
 }
 
-// Tens of the driver's chunks (a few thousand pairs each) and a partial one,
-// from a family with semi-axes over two decades so that some lanes take the
-// fallback inside some chunks.
+// The evaluations of the first pass in automatic mode, read off the report of
+// a batch of spheres: the initial guess is exact for two spheres, so every
+// lane passes its convergence check at the end of the first pass. The batch
+// size is a multiple of every kernel's block (lanes times interleaved
+// groups: 4 to 48), so that no padding lane could enter the mean.
 template <class T>
-void expect_thread_count_changes_nothing(Isa isa) {
+double first_pass_evaluations(Isa isa) {
+  std::vector<Pair<T>> spheres;
+  for (const auto& p : make_random_pairs(48 * 8, 35)) {
+    Pair<double> sphere = p;  // its r12, radii from its diagonals
+    sphere.q1 = pwcontact::sphere(std::sqrt(p.q1[0]));
+    sphere.q2 = pwcontact::sphere(std::sqrt(p.q2[3]));
+    spheres.push_back(convert<T>(sphere));
+  }
+  const BatchRun<T> run = run_batch(make_batch(spheres), with_isa(isa));
+  EXPECT_EQ(run.report.fallbacks, 0u) << label<T>("spheres", isa);
+  return run.report.mean_evaluations;
+}
+
+// Tens of the driver's chunks (a few thousand pairs each) and a partial one,
+// from a family with semi-axes over two decades, so that lanes take every
+// path: in automatic mode some are packed and continue in later passes, with
+// a small fixed count many go to the reference path. Returns the
+// single-thread report.
+template <class T>
+BatchReport expect_thread_count_changes_nothing(Isa isa, int iterations) {
   pwcontact::RandomFamily family;
   family.min_semi_axis = 0.1;
   family.max_semi_axis = 10;
   family.log_uniform_axes = true;
   const PairBatch<T> batch =
       make_batch(convert_all<T>(make_random_pairs(20 * 2048 + 37, 23, family)));
-  const BatchRun<T> one = run_batch(batch, with_isa(isa, 0, 1));
-  EXPECT_GT(one.report.fallbacks, 0u) << "the family should exercise the fallback";
+  const std::string what = "iterations " + std::to_string(iterations) + ", ";
+  const BatchRun<T> one = run_batch(batch, with_isa(isa, iterations, 1));
   for (int threads : {2, 3}) {
-    const BatchRun<T> many = run_batch(batch, with_isa(isa, 0, threads));
+    const BatchRun<T> many = run_batch(batch, with_isa(isa, iterations, threads));
     EXPECT_EQ(many.report.threads, threads);
-    expect_bitwise_equal(one, many, label<T>(std::to_string(threads) + " threads", isa));
+    expect_bitwise_equal(one, many, label<T>(what + std::to_string(threads) + " threads", isa));
   }
+  return one.report;
 }
 
-TEST_P(BatchLanes, ResultsAreBitwiseIdenticalForOneTwoAndThreeThreadsInDouble) {
-  expect_thread_count_changes_nothing<double>(GetParam());
+template <class T>
+void expect_automatic_mode_independent_of_thread_count(Isa isa) {
+  const double first_pass = first_pass_evaluations<T>(isa);
+  const BatchReport report = expect_thread_count_changes_nothing<T>(isa, 0);
+  std::printf("[ measured ] %s: %.3f evaluations per pair (first pass %.3f), %zu fallbacks\n",
+              label<T>("log-uniform family, automatic", isa).c_str(), report.mean_evaluations,
+              first_pass, report.fallbacks);
+  EXPECT_GT(report.mean_evaluations, first_pass) << "the family should need later passes";
 }
 
-TEST_P(BatchLanes, ResultsAreBitwiseIdenticalForOneTwoAndThreeThreadsInFloat) {
-  expect_thread_count_changes_nothing<float>(GetParam());
+// Two evaluations leave most lanes of this family unconverged.
+template <class T>
+void expect_fixed_count_independent_of_thread_count(Isa isa) {
+  const BatchReport report = expect_thread_count_changes_nothing<T>(isa, 2);
+  EXPECT_GT(report.fallbacks, 0u) << "the family should exercise the fallback";
+}
+
+TEST_P(BatchLanes, AutomaticIterationsAreBitwiseIdenticalForOneTwoAndThreeThreadsInDouble) {
+  expect_automatic_mode_independent_of_thread_count<double>(GetParam());
+}
+
+TEST_P(BatchLanes, AutomaticIterationsAreBitwiseIdenticalForOneTwoAndThreeThreadsInFloat) {
+  expect_automatic_mode_independent_of_thread_count<float>(GetParam());
+}
+
+TEST_P(BatchLanes, FixedIterationsAreBitwiseIdenticalForOneTwoAndThreeThreadsInDouble) {
+  expect_fixed_count_independent_of_thread_count<double>(GetParam());
+}
+
+TEST_P(BatchLanes, FixedIterationsAreBitwiseIdenticalForOneTwoAndThreeThreadsInFloat) {
+  expect_fixed_count_independent_of_thread_count<float>(GetParam());
 }
 
 // ---------------------------------------------------------------------------
@@ -291,23 +339,70 @@ TEST(IsaChoice, LaneCountsMatchTheRegisterWidths) {
 // ---------------------------------------------------------------------------
 // Optional and required outputs.
 
-template <class T>
-void expect_optional_outputs_may_be_null(Isa isa) {
-  const PairBatch<T> batch = mixed_batch<T>(1000);
-  const BatchRun<T> full = run_batch(batch, with_isa(isa, 2));
-  std::vector<T> mu2(batch.size());
-  const BatchReport report = pwcontact::contact_function_batch(
-      batch.view(), ContactOutputs<T>{mu2.data()}, with_isa(isa, 2));
-  EXPECT_EQ(std::memcmp(mu2.data(), full.mu2.data(), mu2.size() * sizeof(T)), 0);
-  EXPECT_EQ(report.fallbacks, full.report.fallbacks);
-  EXPECT_EQ(report.invalid, full.report.invalid);
+void expect_same_counts(const BatchReport& a, const BatchReport& b, const std::string& what) {
+  EXPECT_EQ(a.fallbacks, b.fallbacks) << what;
+  EXPECT_EQ(a.invalid, b.invalid) << what;
+  EXPECT_EQ(a.mean_evaluations, b.mean_evaluations) << what;
   for (int s = 0; s < pwcontact::status_count; ++s)
-    EXPECT_EQ(report.status_counts[s], full.report.status_counts[s]);
+    EXPECT_EQ(a.status_counts[s], b.status_counts[s])
+        << what << ", " << pwcontact::status_name(Status(s));
 }
 
-TEST_P(BatchLanes, NullLambdaAndStatusGiveTheSameMu2AndCounts) {
-  expect_optional_outputs_may_be_null<double>(GetParam());
-  expect_optional_outputs_may_be_null<float>(GetParam());
+// The status array only receives the statuses: leaving it out (the driver
+// then keeps them internally) changes no other output and no count, with the
+// other outputs the same.
+template <class T>
+void expect_null_status_changes_nothing(Isa isa, int iterations) {
+  const PairBatch<T> batch = mixed_batch<T>(1000);
+  for (Requested without : {Requested::mu2_only(), Requested{}}) {
+    without.status = false;
+    Requested with = without;
+    with.status = true;
+    const std::string what = label<T>(
+        describe(with) + " vs " + describe(without) + ", iterations " + std::to_string(iterations),
+        isa);
+    const BatchRun<T> a = run_batch(batch, with_isa(isa, iterations), with);
+    const BatchRun<T> b = run_batch(batch, with_isa(isa, iterations), without);
+    expect_bitwise_equal(a, b, what);
+    expect_same_counts(a.report, b.report, what);
+  }
+}
+
+TEST_P(BatchLanes, NullStatusChangesNeitherResultsNorCounts) {
+  for (int iterations : {0, 2}) {
+    expect_null_status_changes_nothing<double>(GetParam(), iterations);
+    expect_null_status_changes_nothing<float>(GetParam(), iterations);
+  }
+}
+
+// Asking for lambda tightens the convergence check (batch.hpp), so mu2 may
+// change in its last bits: both answers stay within the accuracy promised
+// against the reference path, and within LaneTolerance<T>::mu2_alone of each
+// other.
+template <class T>
+void expect_lambda_request_keeps_mu2_within_accuracy(Isa isa) {
+  const auto pairs = convert_all<T>(make_random_pairs(20000, 36));
+  const PairBatch<T> batch = make_batch(pairs);
+  const auto references = double_references(pairs);
+  const BatchRun<T> with_lambda = run_batch(batch, with_isa(isa));
+  Requested no_lambda;
+  no_lambda.lambda = false;
+  const BatchRun<T> without = run_batch(batch, with_isa(isa), no_lambda);
+  expect_lanes_match_reference(references, with_lambda, label<T>("mu2 and lambda", isa));
+  expect_lanes_match_reference(references, without, label<T>("mu2 alone", isa));
+  MaxError difference;
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    difference.add(i, relative_error(without.mu2[i], with_lambda.mu2[i]));
+  print_measured(label<T>("mu2 alone vs mu2 with lambda, relative difference", isa), difference);
+  EXPECT_LE(difference.value, LaneTolerance<T>::mu2_alone) << "lane " << difference.index;
+}
+
+TEST_P(BatchLanes, AskingForLambdaKeepsMu2WithinTheAccuracyBoundInDouble) {
+  expect_lambda_request_keeps_mu2_within_accuracy<double>(GetParam());
+}
+
+TEST_P(BatchLanes, AskingForLambdaKeepsMu2WithinTheAccuracyBoundInFloat) {
+  expect_lambda_request_keeps_mu2_within_accuracy<float>(GetParam());
 }
 
 TEST(BatchCall, NullMu2Throws) {

@@ -22,6 +22,10 @@ namespace pwcontact {
 // Readable parameter values in test names and messages.
 inline void PrintTo(Isa isa, std::ostream* os) { *os << isa_name(isa); }
 inline void PrintTo(Status status, std::ostream* os) { *os << status_name(status); }
+inline void PrintTo(Precision precision, std::ostream* os) { *os << precision_name(precision); }
+inline void PrintTo(Formulation formulation, std::ostream* os) {
+  *os << formulation_name(formulation);
+}
 }  // namespace pwcontact
 
 namespace pwtest {
@@ -110,39 +114,116 @@ template <class T>
 std::vector<ContactResult<double>> double_references(const std::vector<Pair<T>>& pairs);
 std::vector<ContactResult<long double>> long_double_oracles(const std::vector<Pair<double>>& pairs);
 
+// The same template in 50 decimal digits (Boost.Multiprecision
+// cpp_bin_float_50), where long double is not enough: for very
+// ill-conditioned pairs, or to know mu^2 to far better than 1e-14. The
+// results are rounded to long double. Per pair, in OpenMP threads (~0.1 ms
+// per pair).
+std::vector<ContactResult<long double>> fifty_digit_oracles(const std::vector<Pair<double>>& pairs);
+
+// ---------------------------------------------------------------------------
+// Pairs at a chosen mu^2
+
+// The pair with r12 scaled by sqrt(target / mu2), mu2 being its exact
+// contact function: mu^2 is homogeneous of degree 2 in r12, so the new pair's
+// mu^2 is the target, up to the rounding of r12 to double (~1e-16 relative).
+// The scale factor is computed in long double.
+Pair<double> scaled_to_mu2(const Pair<double>& p, long double mu2, long double target);
+
+// Pairs built at a known relative distance from tangency at a cutoff c:
+// mu^2 = c^2 (1 + offset) with |offset| = 1e-3, 1e-4, ..., 1e-14, both signs.
+enum class TangentKind {
+  spheres,            // radii 1e-3 to 7, size ratios to 1e3: mu = |r| / (a1 + a2)
+  coaxial_spheroids,  // aspect ratios to 10, r12 along the common axis: mu = |r| / (c1 + c2)
+  general,            // random family shapes (semi-axes in [0.5, 2]), random direction
+  elongated,          // semi-axes log-uniform in [0.1, 10] (aspect ratios to 100)
+};
+const char* tangent_kind_name(TangentKind kind);
+// Spheres, coaxial spheroids and general pairs are well conditioned (cond(Q) <= 100).
+constexpr bool well_conditioned(TangentKind kind) { return kind != TangentKind::elongated; }
+
+struct NearTangent {
+  Pair<double> pair;
+  long double mu2;  // exact for the stored inputs, to ~1e-19 relative
+  double offset;    // the nominal mu^2 / c^2 - 1 it was built for
+  TangentKind kind;
+};
+
+// The closed-form kinds take mu^2 from their closed form, the others from
+// the 50-digit oracle, both evaluated on the stored double inputs, so that
+// the rounding of the inputs is accounted for exactly.
+std::vector<NearTangent> near_tangent_pairs(double cutoff = 1);
+
 // ---------------------------------------------------------------------------
 // Batch calls
 
+// The optional outputs a batch call asks for (mu2 is always asked for).
+struct Requested {
+  bool lambda = true;
+  bool status = true;
+  bool contact_point = false;
+  bool normal = false;
+  bool gradient = false;
+
+  bool any_geometry() const { return contact_point || normal || gradient; }
+  static Requested mu2_only() { return {false, false, false, false, false}; }
+  static Requested everything() { return {true, true, true, true, true}; }
+};
+
+// "mu2+lambda+status+contact_point+...", to name a request in messages.
+std::string describe(const Requested& requested);
+
+// A three-component output, one array per component.
+template <class T>
+using Components = std::array<std::vector<T>, 3>;
+
+// What a batch call wrote. Arrays that were not asked for are empty.
 template <class T>
 struct BatchRun {
   std::vector<T> mu2, lambda;
   std::vector<Status> status;
+  Components<T> contact_point, normal, gradient;
   BatchReport report;
 };
 
 // Calls the batch path with outputs of exactly pairs.size() elements framed by
 // guard values, and fails the current test if any guard was overwritten.
 template <class T>
-BatchRun<T> run_batch(const PairBatch<T>& pairs, const BatchOptions& options = {});
+BatchRun<T> run_batch(const PairBatch<T>& pairs, const BatchOptions& options = {},
+                      const Requested& requested = {});
 
 // The outputs of the listed lanes, in that order.
 template <class T>
-BatchRun<T> select_lanes(const BatchRun<T>& run, const std::vector<std::size_t>& lanes) {
-  BatchRun<T> out;
-  for (std::size_t i : lanes) {
-    out.mu2.push_back(run.mu2[i]);
-    out.lambda.push_back(run.lambda[i]);
-    out.status.push_back(run.status[i]);
-  }
-  return out;
-}
+BatchRun<T> select_lanes(const BatchRun<T>& run, const std::vector<std::size_t>& lanes);
 
-// Same mu2, lambda and status bits in every lane; on failure names the
-// first lane that differs and how many do. `what` names the comparison.
+// Appends the lanes of every output array of `from` to those of `to`
+// (reports are not merged).
+template <class T>
+void append_lanes(BatchRun<T>& to, const BatchRun<T>& from);
+
+// The same bits in mu2 and in every output array that both runs have; on
+// failure names the first lane that differs and how many do. `what` names
+// the comparison.
 template <class T>
 void expect_bitwise_equal(const BatchRun<T>& a, const BatchRun<T>& b, const std::string& what);
 
+// What an overlap-only call wrote (status empty when it was not asked for).
+struct OverlapRun {
+  std::vector<std::uint8_t> overlap;
+  std::vector<Status> status;
+  BatchReport report;
+};
+
+// overlap_batch with guarded outputs, as run_batch.
+template <class T>
+OverlapRun run_overlap(const PairBatch<T>& pairs, const BatchOptions& options = {},
+                       double cutoff = 1, bool with_status = true);
+
 BatchOptions with_isa(Isa isa, int iterations = 0, int threads = 0);
+// The same options with another precision (and formulation, and accuracy).
+BatchOptions with_precision(BatchOptions options, pwcontact::Precision precision,
+                            pwcontact::Formulation formulation = pwcontact::Formulation::automatic,
+                            pwcontact::Accuracy accuracy = pwcontact::Accuracy::standard);
 
 template <class T>
 constexpr bool single_precision = std::is_same_v<T, float>;
@@ -190,6 +271,20 @@ struct LaneTolerance<double> {
   // lambda is pinned down less sharply than mu2 (mu2 is stationary in it);
   // measured 7e-16, and ~1e3 times that still rejects any lane mix-up.
   static constexpr double lambda = 1e-12;
+  // Between mu2 computed alone and mu2 computed with lambda (or any geometric
+  // output), whose convergence checks differ (batch.hpp): both are converged
+  // to the double floor (measured up to 1.1e-15 from the reference), so 4e-15
+  // (18 eps) bounds their difference. Measured: 9.1e-16 (sse2), 8.1e-16
+  // (avx2, avx512).
+  static constexpr double mu2_alone = 4e-15;
+  // The contact point, normal and gradient against the reference path's at
+  // its lambda, relative to each vector's length: they are computed at the
+  // lane's lambda, within ~1e-12 of the maximiser (batch.hpp; measured 1e-13
+  // on this family), and move by O(1) times that: 1e-11 allows for a
+  // derivative of 10. Measured over every precision but float, iteration
+  // count and instruction set: 2.0e-13 (contact point), 5.8e-14 (normal),
+  // 1.1e-13 (gradient).
+  static constexpr double geometry = 1e-11;
 };
 template <>
 struct LaneTolerance<float> {
@@ -201,17 +296,73 @@ struct LaneTolerance<float> {
   static constexpr double mu2 = 4e-6;
   // Measured 4e-7; the margin is the same as for mu2.
   static constexpr double lambda = 4e-6;
+  // Both answers lie within the float floor of the exact answer for the float
+  // inputs (measured up to 5.2e-7 from the reference), so they differ by up
+  // to twice that, ~1e-6. Measured: 6.2e-7 (sse2), 4.3e-7 (avx2, avx512);
+  // 2e-6 leaves a factor 3.
+  static constexpr double mu2_alone = 2e-6;
+  // Float lanes: lambda within ~1.5e-7 (measured) and the float floor of the
+  // solve, ~5e-7. Measured: 7.3e-7 (contact point), 2.8e-7 (normal), 3.5e-7
+  // (gradient); 1e-5 (the float accuracy promised for mu2 on this family)
+  // leaves a factor ~14.
+  static constexpr double geometry = 1e-5;
 };
+
+// Three-component outputs, in long double for comparisons.
+using Vector3L = Eigen::Matrix<long double, 3, 1>;
+
+template <class T>
+Vector3L lane_vector(const Components<T>& v, std::size_t i) {
+  return {v[0][i], v[1][i], v[2][i]};
+}
+
+template <class T>
+Vector3L as_vector(const T (&v)[3]) {
+  return {v[0], v[1], v[2]};
+}
+
+// |got - expected| / |expected| (|got - expected| when expected is 0);
+// infinite when either has a NaN.
+double vector_error(const Vector3L& got, const Vector3L& expected);
+
+// The reference path's contact_geometry at its own lambda, per pair (float
+// pairs widened exactly); references[i] must be valid.
+template <class T>
+std::vector<pwcontact::ContactGeometry<double>> reference_geometries(
+    const std::vector<Pair<T>>& pairs, const std::vector<ContactResult<double>>& references);
+
+// Every geometric output `run` has (and a valid status in every lane),
+// lane by lane against `expected`, within `tolerance` relative to each
+// vector's length; prints the largest errors. `what` names the case.
+template <class T>
+void expect_geometry_matches(const BatchRun<T>& run,
+                             const std::vector<pwcontact::ContactGeometry<double>>& expected,
+                             double tolerance, const std::string& what);
 
 struct LaneErrors {
   MaxError mu2, lambda;
 };
 
-// Every lane i: a valid status, mu2[i] and lambda[i] within LaneTolerance<T>
-// of references[i]. `label` names the case in failure messages.
+// LaneTolerance<T> as values, to choose between them at run time.
+struct Tolerances {
+  double mu2, lambda, geometry;
+};
+
+template <class T>
+Tolerances tolerances_of() {
+  return {LaneTolerance<T>::mu2, LaneTolerance<T>::lambda, LaneTolerance<T>::geometry};
+}
+
+// Those of lanes that iterate in `precision`: float's in single precision,
+// whatever the type of the pairs (they are rounded to float), else double's.
+Tolerances tolerances_for(pwcontact::Precision precision);
+
+// Every lane i: a valid status, mu2[i] and lambda[i] (when asked for) within
+// the tolerances of references[i]. `label` names the case in failure messages.
 template <class T>
 LaneErrors expect_lanes_match_reference(const std::vector<ContactResult<double>>& references,
-                                        const BatchRun<T>& run, const std::string& label);
+                                        const BatchRun<T>& run, const std::string& label,
+                                        const Tolerances& tolerances = tolerances_of<T>());
 
 // ---------------------------------------------------------------------------
 // The independent quad-precision reference values (PWCONTACT_REFERENCE_PAIRS)

@@ -34,11 +34,17 @@ namespace pwcontact::kernels {
 // random family: after 3 (double) or 2 (float) the convergence check passes
 // for 96-98 % of the lanes, and the rest continue, packed, one evaluation per
 // pass (a longer first pass wastes evaluations on most lanes, a shorter one
-// packs most lanes: both measured slower). On elongated shapes (the pw85
-// family) about half the lanes continue, which is what makes automatic
-// iterations 5x faster there than a fixed count with the scalar fallback.
+// packs most lanes: both measured slower). When lambda or a geometric output
+// is asked for, the check is stricter (see KernelTolerance) and one more
+// evaluation gets back there. On elongated shapes (the pw85 family) about
+// half the lanes continue, which is what makes automatic iterations 5x
+// faster there than a fixed count with the scalar fallback.
 template <class T>
-inline constexpr int first_pass_evaluations = std::is_same<T, double>::value ? 3 : 2;
+PWCONTACT_INLINE int first_pass_evaluations(const ChunkSettings& settings) {
+  const int plain = std::is_same<T, double>::value ? 3 : 2;
+  return settings.outputs != 0 ? plain + 1 : plain;
+}
+
 // A mixed-precision solve: float steps from the radial guess in automatic
 // mode, then double evaluations (a Newton step from the float lambda and the
 // evaluation that checks it).
@@ -333,7 +339,7 @@ class FullBlock : public LaneGroups<Arch, T> {
         // to be packed lane by lane (pack_unfinished), which is cheaper for a
         // few and costlier for many (measured: random pairs, with a few per
         // register, and the pw85 family, with half, each gain ~10 %).
-        const bool many = std::size_t(xsimd::hadd(xsimd::select(unfinished, B(1), B(0)))) * 4 > W;
+        const bool many = count_lanes<Arch, T>(unfinished) * 4 > W;
         if (many) keep_registers(u, unfinished);
         const B nan(std::numeric_limits<T>::quiet_NaN());
         write_lanes<Arch, T, T>(state.lambda, at_[u], many ? nan : xsimd::select(unfinished, lambda_[u], nan));
@@ -478,7 +484,7 @@ void later_passes(FullKept<T>& kept, const ResultSpan<Out>& out, int done,
 // lambda and the bracket by chunk position, in the scratch arrays after the
 // kept lanes'.
 template <class T>
-StateByPosition<T> state_by_position(const Scratch& scratch) {
+PWCONTACT_INLINE StateByPosition<T> state_by_position(const Scratch& scratch) {
   const std::size_t stride = scratch.capacity + scratch_padding_pairs;
   T* const base = static_cast<T*>(scratch.memory) + FullKept<T>::footprint * stride;
   static_assert(FullKept<T>::footprint + 3 <= scratch_values_per_pair);
@@ -493,7 +499,7 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
   FullKept<T> kept(scratch, 0);
   const StateByPosition<T> state = state_by_position<T>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
-  const int first = automatic ? first_pass_evaluations<T> : settings.iterations;
+  const int first = automatic ? first_pass_evaluations<T>(settings) : settings.iterations;
   const Handoff handoff = automatic && first < settings.max_iterations ? Handoff::adaptive
                                                                        : Handoff::none;
   for_each_block<Arch, FullBlock<Arch, T>::size>(

@@ -92,7 +92,7 @@ struct KeptLanes {
   std::uint32_t* index;
   std::size_t count = 0;
 
-  KeptLanes(const Scratch& scratch, std::size_t first_array) {
+  PWCONTACT_INLINE KeptLanes(const Scratch& scratch, std::size_t first_array) {
     const std::size_t stride = scratch.capacity + scratch_padding_pairs;
     T* base = static_cast<T*>(scratch.memory) + first_array * stride;
     for (int k = 0; k < arrays; ++k) values[k] = base + std::size_t(k) * stride;
@@ -204,7 +204,7 @@ struct LanePositions {
   const std::uint32_t* index;  // null: consecutive
   std::size_t real;
 
-  std::size_t operator[](std::size_t l) const { return index ? index[l] : base + l; }
+  PWCONTACT_INLINE std::size_t operator[](std::size_t l) const { return index ? index[l] : base + l; }
 };
 
 // Appends the lanes of one group selected by `keep` to the kept lanes, given

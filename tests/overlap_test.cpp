@@ -1,0 +1,281 @@
+// Overlap-only answers (overlap_batch) on every instruction set, in every
+// precision, with automatic and fixed iterations and several cutoffs: the
+// yes/no answer against the exact classification mu^2 < cutoff^2 from a
+// high-precision oracle, on families from easy to near tangent; the
+// report's accounting; invalid pairs; malformed calls.
+#include <cmath>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+#include "test_support.hpp"
+
+namespace pwtest {
+namespace {
+
+using pwcontact::Precision;
+
+// batch.hpp: the answer agrees with mu^2 < cutoff^2 whenever
+// |mu^2 - cutoff^2| > 1e-9 cutoff^2 (Q conditioned up to ~1e8, which covers
+// every family here). Pairs inside that band may go either way.
+constexpr double decided_band = 1e-9;
+
+// Pairs with their exact mu^2, and as a batch.
+struct Classified {
+  std::vector<Pair<double>> pairs;
+  std::vector<long double> mu2;
+  PairBatch<double> batch;
+};
+
+Classified with_oracle(std::vector<Pair<double>> pairs) {
+  Classified out{std::move(pairs), {}, {}};
+  std::size_t failed = 0;
+  for (const auto& result : long_double_oracles(out.pairs)) {
+    failed += result.status != Status::ok;
+    out.mu2.push_back(result.mu2);
+  }
+  EXPECT_EQ(failed, 0u) << "pairs the oracle could not solve";
+  return out;
+}
+
+// Random shapes at centre distances spread around contact, as in a dense
+// scene: r12 scaled so that mu is uniform in [0.5, 1.5].
+Classified scene_like_mix() {
+  const auto shapes = make_random_pairs(20000, 91);
+  const auto base = long_double_oracles(shapes);
+  std::mt19937_64 engine(92);
+  std::vector<Pair<double>> pairs;
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const long double mu = 0.5L + (long double)(engine() >> 11) * 0x1.0p-53L;
+    pairs.push_back(scaled_to_mu2(shapes[i], base[i].mu2, mu * mu));
+  }
+  return with_oracle(std::move(pairs));
+}
+
+Classified near_tangent(double cutoff) {
+  Classified out;
+  for (const NearTangent& t : near_tangent_pairs(cutoff)) {
+    out.pairs.push_back(t.pair);
+    out.mu2.push_back(t.mu2);
+  }
+  return out;
+}
+
+enum class FamilyName { random, pw85, scene_like, near_tangent };
+
+const char* family_name(FamilyName name) {
+  switch (name) {
+    case FamilyName::random:
+      return "random";
+    case FamilyName::pw85:
+      return "pw85";
+    case FamilyName::scene_like:
+      return "scene_like";
+    case FamilyName::near_tangent:
+      return "near_tangent";
+  }
+  return "unknown";
+}
+
+// Built once per process and cutoff (only the near-tangent set depends on
+// it); as_float: the pairs rounded to float, with their own exact mu^2.
+const Classified& family(FamilyName name, double cutoff, bool as_float) {
+  static std::map<std::tuple<FamilyName, double, bool>, Classified> cache;
+  const auto key = std::make_tuple(name, name == FamilyName::near_tangent ? cutoff : 1.0, as_float);
+  const auto found = cache.find(key);
+  if (found != cache.end()) return found->second;
+  Classified built;
+  if (as_float) {
+    built = with_oracle(convert_all<double>(convert_all<float>(family(name, cutoff, false).pairs)));
+  } else {
+    switch (name) {
+      case FamilyName::random:
+        built = with_oracle(make_random_pairs(20000, 93));
+        break;
+      case FamilyName::pw85:
+        built = with_oracle(pairs_of(pwcontact::pw85_family()));
+        break;
+      case FamilyName::scene_like:
+        built = scene_like_mix();
+        break;
+      case FamilyName::near_tangent:
+        built = near_tangent(cutoff);
+        break;
+    }
+  }
+  built.batch = make_batch(built.pairs);
+  return cache.emplace(key, std::move(built)).first->second;
+}
+
+// How the pairs are given and solved: double pairs in a precision, or the
+// pairs rounded to float (classified against their own mu^2).
+struct Setting {
+  Precision precision;
+  bool float_pairs;
+  int iterations;
+};
+
+std::string setting_name(const Setting& s) {
+  return std::string(s.float_pairs ? "float pairs" : pwcontact::precision_name(s.precision)) +
+         ", iterations " + std::to_string(s.iterations);
+}
+
+std::vector<Setting> every_setting() {
+  std::vector<Setting> out;
+  for (int iterations : {0, 2}) {
+    for (Precision p : {Precision::double_precision, Precision::mixed, Precision::single_precision})
+      out.push_back({p, false, iterations});
+    out.push_back({Precision::single_precision, true, iterations});
+  }
+  return out;
+}
+
+// The accounting every overlap report must satisfy: each valid pair is
+// decided exactly once, by a prefilter, a certificate or the reference path.
+void expect_report_accounts_for_every_pair(const OverlapRun& run, std::size_t valid,
+                                           const std::string& what) {
+  const BatchReport& r = run.report;
+  EXPECT_EQ(r.decided_by_prefilter + r.decided_by_certificate + r.fallbacks, valid) << what;
+  EXPECT_EQ(r.pairs, run.overlap.size()) << what;
+  EXPECT_EQ(r.pairs - r.invalid, valid) << what;
+  std::size_t overlapping = 0;
+  for (std::uint8_t o : run.overlap) overlapping += o;
+  EXPECT_EQ(r.overlapping, overlapping) << what;
+}
+
+struct Classification {
+  std::size_t wrong = 0, in_band = 0, first_wrong = 0, malformed = 0;
+};
+
+// Compares every answer outside the band with mu^2 < cutoff^2; counts the
+// answers that are not a valid status with overlap 0 or 1.
+Classification classify(const OverlapRun& run, const std::vector<long double>& mu2, double cutoff) {
+  Classification c;
+  const long double c2 = (long double)cutoff * cutoff;
+  for (std::size_t i = 0; i < mu2.size(); ++i) {
+    c.malformed += !pwcontact::is_valid(run.status[i]) || run.overlap[i] > 1;
+    if (std::fabs(mu2[i] - c2) <= decided_band * c2) {
+      ++c.in_band;
+      continue;
+    }
+    if ((run.overlap[i] == 1) != (mu2[i] < c2) && c.wrong++ == 0) c.first_wrong = i;
+  }
+  return c;
+}
+
+void expect_agrees_with_exact(const Classified& f, const Setting& setting, Isa isa, double cutoff,
+                              const std::string& what) {
+  const BatchOptions options = with_precision(with_isa(isa, setting.iterations), setting.precision);
+  // The float family's pairs are floats widened: to_float gives them back exactly.
+  const OverlapRun run = setting.float_pairs
+                             ? run_overlap(pwcontact::to_float(f.batch), options, cutoff)
+                             : run_overlap(f.batch, options, cutoff);
+  const Classification c = classify(run, f.mu2, cutoff);
+  EXPECT_EQ(c.malformed, 0u) << what << ": answers that are not a valid status and 0 or 1";
+  const BatchReport& r = run.report;
+  std::printf(
+      "[ measured ] %s: %zu wrong outside the band (%zu in it); decided by prefilter %zu, "
+      "certificate %zu, reference %zu; %.2f evaluations per pair\n",
+      what.c_str(), c.wrong, c.in_band, r.decided_by_prefilter, r.decided_by_certificate,
+      r.fallbacks, r.mean_evaluations);
+  EXPECT_EQ(c.wrong, 0u) << what << ", first pair " << c.first_wrong << ": mu2 "
+                         << double(f.mu2[c.first_wrong]) << ", overlap "
+                         << int(run.overlap[c.first_wrong]);
+  expect_report_accounts_for_every_pair(run, f.mu2.size(), what);
+}
+
+class Overlap : public ::testing::TestWithParam<std::tuple<FamilyName, Isa>> {};
+
+TEST_P(Overlap, AgreesWithTheExactClassificationOutsideTheDocumentedBand) {
+  const auto& [name, isa] = GetParam();
+  for (double cutoff : {1.0, 0.8, 1.2})
+    for (const Setting& setting : every_setting()) {
+      const std::string what = std::string(family_name(name)) + ", cutoff " +
+                               testing::PrintToString(cutoff) + ", " + pwcontact::isa_name(isa) +
+                               ", " + setting_name(setting);
+      expect_agrees_with_exact(family(name, cutoff, setting.float_pairs), setting, isa, cutoff,
+                               what);
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryFamilyAndIsa, Overlap,
+                         ::testing::Combine(::testing::Values(FamilyName::random, FamilyName::pw85,
+                                                              FamilyName::scene_like,
+                                                              FamilyName::near_tangent),
+                                            ::testing::ValuesIn(isas())),
+                         [](const auto& info) {
+                           return std::string(family_name(std::get<0>(info.param))) + "_" +
+                                  pwcontact::isa_name(std::get<1>(info.param));
+                         });
+
+// ---------------------------------------------------------------------------
+
+// Invalid pairs among valid ones: overlap 0 and the status the reference path
+// gives them; the valid ones are still accounted for.
+TEST(OverlapCall, InvalidPairsGiveOverlapZeroAndTheirStatus) {
+  auto pairs = make_random_pairs(500, 94);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t i = 0; i < pairs.size(); i += 7) {
+    switch (i % 4) {
+      case 0:
+        pairs[i].r12[2] = nan;
+        break;
+      case 1:
+        pairs[i].q1 = {1, 2, 0, 1, 0, 1};
+        break;  // indefinite
+      case 2:
+        pairs[i].q2 = {1, 0, 0, 1, 0, 0};
+        break;  // singular
+      default:
+        pairs[i].q2[4] = std::numeric_limits<double>::infinity();
+        break;
+    }
+  }
+  for (Isa isa : isas()) {
+    const OverlapRun run = run_overlap(make_batch(pairs), with_isa(isa));
+    std::size_t valid = 0;
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      const Status expected = reference(pairs[i]).status;
+      valid += pwcontact::is_valid(expected);
+      if (pwcontact::is_valid(expected)) continue;
+      EXPECT_EQ(run.status[i], expected) << pwcontact::isa_name(isa) << ", pair " << i;
+      EXPECT_EQ(run.overlap[i], 0) << pwcontact::isa_name(isa) << ", pair " << i;
+    }
+    EXPECT_EQ(run.report.invalid, pairs.size() - valid);
+    EXPECT_GT(run.report.invalid, 0u);
+    expect_report_accounts_for_every_pair(run, valid, pwcontact::isa_name(isa));
+  }
+}
+
+TEST(OverlapCall, NullStatusGivesTheSameAnswers) {
+  const PairBatch<double> batch = make_batch(make_random_pairs(3000, 95));
+  for (Isa isa : isas()) {
+    const OverlapRun with = run_overlap(batch, with_isa(isa), 1, true);
+    const OverlapRun without = run_overlap(batch, with_isa(isa), 1, false);
+    EXPECT_EQ(with.overlap, without.overlap) << pwcontact::isa_name(isa);
+    EXPECT_EQ(with.report.fallbacks, without.report.fallbacks) << pwcontact::isa_name(isa);
+  }
+}
+
+template <class T>
+void expect_bad_cutoffs_rejected() {
+  const PairBatch<T> batch = make_batch(convert_all<T>(make_random_pairs(10, 96)));
+  const double infinity = std::numeric_limits<double>::infinity();
+  for (double cutoff : {0.0, -0.0, -1.0, std::nan(""), infinity, -infinity})
+    EXPECT_THROW(run_overlap(batch, {}, cutoff), std::invalid_argument) << "cutoff " << cutoff;
+}
+
+TEST(OverlapCall, CutoffThatIsNotPositiveAndFiniteThrows) {
+  expect_bad_cutoffs_rejected<double>();
+  expect_bad_cutoffs_rejected<float>();
+}
+
+TEST(OverlapCall, NullOverlapThrows) {
+  const PairBatch<double> batch = make_batch(make_random_pairs(10, 97));
+  std::vector<Status> status(batch.size());
+  EXPECT_THROW(pwcontact::overlap_batch(batch.view(), {nullptr, status.data()}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pwtest
