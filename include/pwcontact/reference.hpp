@@ -59,8 +59,19 @@ struct Ldlt3 {
     d2 = a[5] - l20 * a[2] - l21 * t;
   }
 
-  // Written so that NaN pivots count as "not positive definite".
-  bool positive_definite() const { return d0 > 0 && d1 > 0 && d2 > 0; }
+  // Positive definite beyond doubt: every pivot above the rounding error of
+  // the terms that cancel in it (16 eps times their magnitudes; the error is
+  // a few eps). A Q whose smallest eigenvalue is below ~1e-15 of its largest
+  // (double) is then "not positive definite" rather than answered as if it
+  // were an ellipsoid its rounded entries cannot define. Written so that NaN
+  // pivots count as "not positive definite".
+  bool positive_definite(const T a[6]) const {
+    using std::abs;
+    const T margin = T(16) * std::numeric_limits<T>::epsilon();
+    const T cancelled1 = a[3] + abs(l10 * a[1]);
+    const T cancelled2 = a[5] + abs(l20 * a[2]) + l21 * l21 * d1;
+    return d0 > 0 && d1 > margin * cancelled1 && d2 > margin * cancelled2;
+  }
 
   // y = L^-1 b
   void forward(const T b[3], T y[3]) const {
@@ -214,9 +225,9 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   const T* const p2 = scaled.q2;
 
   const detail::Ldlt3<T> ldlt1(p1), ldlt2(p2);
-  if (!ldlt1.positive_definite())
+  if (!ldlt1.positive_definite(p1))
     return {nan, nan, Status::q1_not_positive_definite, 0};
-  if (!ldlt2.positive_definite())
+  if (!ldlt2.positive_definite(p2))
     return {nan, nan, Status::q2_not_positive_definite, 0};
 
   const T slope0 = detail::inverse_quadratic_form(ldlt1, r);  // f'(0)

@@ -150,8 +150,10 @@ void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status
     In largest = v[3];
     for (int k : diagonals) largest = v[k] > largest ? v[k] : largest;
     In t = 1;
-    if (!(largest >= In(KernelTolerance<T>::safe_scale_low) &&
-          largest <= In(KernelTolerance<T>::safe_scale_high)) &&
+    // (As load_pairs: always when narrowing, else only out of the safe range.)
+    const bool narrowing = !std::is_same<T, In>::value;
+    if ((narrowing || !(largest >= In(KernelTolerance<T>::safe_scale_low) &&
+                        largest <= In(KernelTolerance<T>::safe_scale_high))) &&
         largest > 0 && largest < std::numeric_limits<In>::infinity()) {
       // sqrt = m 2^e with m in [1/2, 1): the power of two below is 2^(e - 1).
       // (Builtins, not std:: overloads: no inline library code in this file.)
@@ -199,8 +201,8 @@ class FullBlock : public LaneGroups<Arch, T> {
       lo_[u] = B(0);
       hi_[u] = B(1);
       // Positive definiteness from the leading principal minors (Sylvester).
-      live_[u] = this->real_lanes(u) & all_finite(p) &
-                 Adjugate<B>(p.q1).positive_definite(p.q1) & Adjugate<B>(p.q2).positive_definite(p.q2);
+      live_[u] = this->usable(u) & Adjugate<B>(p.q1).positive_definite(p.q1) &
+                 Adjugate<B>(p.q2).positive_definite(p.q2);
       // Coincident centres: mu^2 = 0.
       coincident_[u] = live_[u] & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
@@ -234,8 +236,7 @@ class FullBlock : public LaneGroups<Arch, T> {
       lambda_[u] = xsimd::select((start > B(0)) & (start < B(1)), start, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
-      live_[u] = this->real_lanes(u) & all_finite(pair_[u]) &
-                 Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
+      live_[u] = this->usable(u) & Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
                  Adjugate<B>(pair_[u].q2).positive_definite(pair_[u].q2);
       coincident_[u] = live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) &
                        (pair_[u].r[2] == B(0));
@@ -301,9 +302,7 @@ class FullBlock : public LaneGroups<Arch, T> {
       // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
       // ulp of f finishes it, with the answer f.
       // The model is Newton's whatever the formulation (for Newton's own, the
-      // step g / g' was just taken: no second division). A lane finished by
-      // it reports the Newton step's lambda; one finished by the bound, the
-      // lambda where f was evaluated.
+      // step g / g' was just taken: no second division).
       const bool newton_formulation = settings_.formulation == Formulation::newton;
       const B step = newton_formulation ? e.lambda - lambda_[u] : e.g / e.dg;
       const B newton_lambda = e.lambda - step;
@@ -327,8 +326,11 @@ class FullBlock : public LaneGroups<Arch, T> {
         answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
       write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
+      // The reported lambda is the Newton step's, kept in the bracket: for a
+      // lane finished by the bound the step may leave the bracket by
+      // round-off, and the bracket's end is then the better estimate.
       const B reported = xsimd::select(coincident_[u], lambda_coincident_[u],
-                                       xsimd::select(corrected, newton_lambda, e.lambda));
+                                       xsimd::min(xsimd::max(newton_lambda, lo_[u]), hi_[u]));
       write_answer(out, u, e, answer.s, reported);
       write_statuses<Arch, T>(out.status, at_[u], finished);
 

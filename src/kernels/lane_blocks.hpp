@@ -42,8 +42,12 @@ struct KernelTolerance<double> {
   static constexpr double corrected_gain_with_lambda = 1e-13;
   static constexpr double bounded_gain = 4 * std::numeric_limits<double>::epsilon();
   // Inputs whose largest diagonal entry lies in this range are solved as
-  // they are; others are first rescaled.
-  static constexpr double safe_scale_low = 0x1p-300, safe_scale_high = 0x1p300;
+  // they are; others are first rescaled. The widest products the kernels
+  // form (n det in the initial guess and the overlap bounds) are of degree 12
+  // in the length scale, ~2^(6e) for a diagonal 2^e: the range keeps them
+  // far from overflow and underflow, so that the scaling, which is exact,
+  // changes no result whether it is applied or not.
+  static constexpr double safe_scale_low = 0x1p-100, safe_scale_high = 0x1p100;
   // A double lane that is ill-conditioned would gain nothing from the
   // fallback, which runs in double too.
   static constexpr bool checks_growth = false;
@@ -55,7 +59,7 @@ struct KernelTolerance<float> {
   static constexpr float corrected_gain = 1e-5f;
   static constexpr float corrected_gain_with_lambda = 1e-7f;
   static constexpr float bounded_gain = 4 * std::numeric_limits<float>::epsilon();
-  static constexpr float safe_scale_low = 0x1p-36f, safe_scale_high = 0x1p36f;
+  static constexpr float safe_scale_low = 0x1p-10f, safe_scale_high = 0x1p10f;
   // A float lane whose factorisation shows element growth above this is
   // finished in double: beyond it float can lose more than ~1e-5 (measured on
   // the pw85 and log-uniform families; random pairs with semi-axes in [0.5, 2]
@@ -116,11 +120,11 @@ PWCONTACT_INLINE B largest_diagonal(const PairLanes<B>& p) {
 // overflow or underflow: the scaling is exact, so skipping it elsewhere
 // changes no result. Returns t (1 where not scaled).
 template <class B>
-PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p) {
+PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p, bool always = false) {
   using T = typename B::value_type;
   const B largest = largest_diagonal(p);
   const B low(KernelTolerance<T>::safe_scale_low), high(KernelTolerance<T>::safe_scale_high);
-  if (xsimd::all((largest >= low) & (largest <= high))) return B(1);
+  if (!always && xsimd::all((largest >= low) & (largest <= high))) return B(1);
   const B infinity(std::numeric_limits<T>::infinity());
   const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
   const B t = xsimd::select((power > B(0)) & (power < infinity), B(1) / power, B(1));
@@ -164,7 +168,10 @@ PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLane
       component(lo, k) = D::load_unaligned(component(in, k) + i);
       component(hi, k) = D::load_unaligned(component(in, k) + i + half);
     }
-    const D scale_lo = nondimensionalise(lo), scale_hi = nondimensionalise(hi);
+    // Always scaled before narrowing: float's range is narrower than the
+    // double kernels' safe range, and a pair and its power-of-two multiples
+    // must round to the same floats (then they get the same answer).
+    const D scale_lo = nondimensionalise(lo, true), scale_hi = nondimensionalise(hi, true);
     for (int k = 0; k < pair_components; ++k)
       component(p, k) = narrow<Arch>(component(lo, k), component(hi, k));
     scale = narrow<Arch>(scale_lo, scale_hi);
@@ -394,6 +401,14 @@ class LaneGroups {
     const std::size_t offset = std::size_t(u) * W;
     load_pairs<Arch, T, In>(in, from + offset, pair_[u], scale_[u]);
     at_[u] = {position + offset, index ? index + offset : nullptr, lanes_in_group(real, u)};
+  }
+
+  // A lane the kernels can answer: finite inputs, and a scale factor that its
+  // arithmetic can represent (float lanes on double pairs at scales beyond
+  // float's range are left to the reference path).
+  PWCONTACT_INLINE M usable(int u) const {
+    return this->real_lanes(u) & all_finite(pair_[u]) & (scale_[u] > B(0)) &
+           (scale_[u] < B(std::numeric_limits<T>::infinity()));
   }
 
   void count_evaluations(int evaluations) {

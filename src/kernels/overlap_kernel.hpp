@@ -75,7 +75,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       this->load(in, from, position, index, real, u);
       const PairLanes<B>& p = pair_[u];
       const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
-      live_[u] = this->real_lanes(u) & all_finite(p) & positive_definite(f1) & positive_definite(f2);
+      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2);
       const B s0 = inverse_quadratic_form(f1, p.r), s1 = inverse_quadratic_form(f2, p.r);
       const B root0 = xsimd::sqrt(s0), root1 = xsimd::sqrt(s1);
       lambda_[u] = root1 / (root0 + root1);
@@ -133,8 +133,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B t1 = p.q1[0] + p.q1[3] + p.q1[5], t2 = p.q2[0] + p.q2[3] + p.q2[5];
       const M conditioned = (t1 * t1 * t1 <= conditioning * a1.det) &
                             (t2 * t2 * t2 <= conditioning * a2.det);
-      live_[u] = this->real_lanes(u) & all_finite(p) & a1.positive_definite(p.q1) &
-                 a2.positive_definite(p.q2) & conditioned;
+      live_[u] = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
+                 conditioned;
       const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);
       // Radial extents: mu^2 <= 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 with
       // s_i = n_i / det_i, n_i = r^T adj(Qi) r; support extents:
@@ -237,6 +237,9 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   PWCONTACT_INLINE void decide(int u, const OverlapSpan& out, bool keep,
                                std::uint64_t ChunkCounters::*count) {
     const M decided = decide_only(u, out, count);
+    // Bounds that have met within their rounding straddle the cutoff: more
+    // iterations would not decide the lane, the reference path will.
+    const M undecidable = upper_[u] <= lower_[u] * (B(1) + B(8) * margin_[u]);
     if (keep) {
       const B values[OverlapKept<T>::arrays] = {
           pair_[u].r[0],  pair_[u].r[1],  pair_[u].r[2],  pair_[u].q1[0], pair_[u].q1[1],
@@ -244,7 +247,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
           pair_[u].q2[1], pair_[u].q2[2], pair_[u].q2[3], pair_[u].q2[4], pair_[u].q2[5],
           lambda_[u],     lo_[u],         hi_[u],         f_lo_[u],       g_lo_[u],
           f_hi_[u],       g_hi_[u],       lower_[u],      upper_[u],      margin_[u]};
-      keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided, values, at_[u]);
+      keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided & !undecidable, values, at_[u]);
     }
   }
 

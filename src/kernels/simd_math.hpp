@@ -57,10 +57,21 @@ PWCONTACT_INLINE Ldlt<B> factor(const B a[6]) {
   return f;
 }
 
+// The kernels answer only for Q positive definite beyond doubt, with a
+// margin on the rounding of each pivot 64 times the reference path's (see
+// Ldlt3::positive_definite there): a Q near the boundary goes to the
+// reference path, which decides, so that the kernels never call valid a pair
+// the reference path would reject.
+template <class T>
+inline constexpr T definiteness_margin = 1024 * std::numeric_limits<T>::epsilon();
+
 template <class B>
-PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f) {
-  const B zero(0);
-  return (f.d0 > zero) & (f.d1 > zero) & (f.d2 > zero);
+PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f, const B a[6]) {
+  using T = typename B::value_type;
+  const B margin(definiteness_margin<T>);
+  const B cancelled1 = a[3] + xsimd::abs(f.l10 * a[1]);
+  const B cancelled2 = a[5] + xsimd::abs(f.l20 * a[2]) + f.l21 * f.l21 * f.d1;
+  return (f.d0 > B(0)) & (f.d1 > margin * cancelled1) & (f.d2 > margin * cancelled2);
 }
 
 // The largest ratio of the magnitudes that cancel in a pivot to the pivot:
@@ -127,10 +138,17 @@ struct Adjugate {
     return c00 * r[0] * r[0] + c11 * r[1] * r[1] + c22 * r[2] * r[2] +
            B(2) * (c01 * r[0] * r[1] + c02 * r[0] * r[2] + c12 * r[1] * r[2]);
   }
-  // Sylvester's criterion: the leading principal minors a0, a0 a3 - a1^2, det.
+  // Sylvester's criterion, beyond doubt: the leading principal minors a0,
+  // a0 a3 - a1^2 and det above the rounding error of what cancels in them
+  // (see definiteness_margin).
   auto positive_definite(const B a[6]) const {
-    const B zero(0);
-    return (a[0] > zero) & (c22 > zero) & (det > zero);
+    using T = typename B::value_type;
+    const B margin(definiteness_margin<T>);
+    const B minor_terms = a[0] * a[3] + a[1] * a[1];
+    const B det_terms = a[0] * (a[3] * a[5] + a[4] * a[4]) +
+                        xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
+                        xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
+    return (a[0] > B(0)) & (c22 > margin * minor_terms) & (det > margin * det_terms);
   }
 };
 
@@ -251,22 +269,30 @@ PWCONTACT_INLINE void two_sum(const B& a, const B& b, B& s, B& e) {
   e = (a - (s - z)) + (b - z);
 }
 
-// a b = p + e exactly, with a fused multiply-add written as an intrinsic
+// a b = p + e exactly. With a fused multiply-add, written as an intrinsic
 // (xsimd 8.1's fms on AVX-512 is a plain a*b - c that only the compiler's
-// contraction would fuse). SSE2 has no FMA: there the correction is lost and
-// Accuracy::high falls back to the plain evaluation's floor (documented).
+// contraction would fuse); without one (SSE2), Dekker's product of Veltkamp
+// halves, each with at most half the significand's bits, so that every
+// partial product is exact (this file is compiled without FMA contraction
+// there: no -mfma).
 template <class B>
 PWCONTACT_INLINE void two_product(const B& a, const B& b, B& p, B& e) {
   using Arch = typename B::arch_type;
+  using T = typename B::value_type;
   p = a * b;
-  if constexpr (is_avx512<Arch> && std::is_same<typename B::value_type, double>::value)
+  if constexpr (is_avx512<Arch> && std::is_same<T, double>::value) {
     e = _mm512_fmsub_pd(a, b, p);
-  else if constexpr (is_avx512<Arch>)
+  } else if constexpr (is_avx512<Arch>) {
     e = _mm512_fmsub_ps(a, b, p);
-  else if constexpr (std::is_base_of<xsimd::fma3<xsimd::avx2>, Arch>::value)
+  } else if constexpr (std::is_base_of<xsimd::fma3<xsimd::avx2>, Arch>::value) {
     e = xsimd::fms(a, b, p);  // a real vfmsub on fma3
-  else
-    e = B(0);
+  } else {
+    const B splitter(std::is_same<T, double>::value ? T(134217729.0) : T(4097.0));  // 2^27+1, 2^12+1
+    const B ca = splitter * a, cb = splitter * b;
+    const B a_hi = ca - (ca - a), b_hi = cb - (cb - b);
+    const B a_lo = a - a_hi, b_lo = b - b_hi;
+    e = ((a_hi * b_hi - p) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo;
+  }
 }
 
 // A double-double accumulator: hi + lo
