@@ -6,6 +6,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -155,37 +157,87 @@ class ScratchArena {
   std::unique_ptr<unsigned char[]> storage_;
 };
 
-// Runs `solve_chunk(begin, n, scratch, counters, fallbacks)` over the chunks
-// in parallel and sums what the chunks counted into the report.
+// What the driver counts per chunk, while the chunk's results are in cache
+// (a pass over the whole batch afterwards would cost several % of a call).
+struct ChunkTally {
+  std::size_t fallbacks = 0;
+  std::size_t status_counts[status_count] = {};
+  std::size_t overlapping = 0;
+
+  void add(const ChunkTally& other) {
+    fallbacks += other.fallbacks;
+    for (int s = 0; s < status_count; ++s) status_counts[s] += other.status_counts[s];
+    overlapping += other.overlapping;
+  }
+};
+
+// Runs `solve_chunk(begin, n, scratch, counters, tally)` over the chunks in
+// parallel and sums what the chunks counted into the report.
 template <class SolveChunk>
 void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk) {
   const std::size_t chunks = (pairs + chunk_pairs - 1) / chunk_pairs;
   const ScratchArena arena(report.threads);
   std::uint64_t evaluations = 0, prefilter = 0, certificate = 0;
-  std::size_t fallbacks = 0;
-#pragma omp parallel num_threads(report.threads) reduction(+ : evaluations, prefilter, certificate, fallbacks)
+  ChunkTally total;
+#pragma omp parallel num_threads(report.threads) reduction(+ : evaluations, prefilter, certificate)
   {
     const kernels::Scratch scratch = arena.for_thread(omp_get_thread_num());
+    ChunkTally tally;
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t c = 0; c < chunks; ++c) {
       const std::size_t begin = c * chunk_pairs;
       kernels::ChunkCounters counters;
-      solve_chunk(begin, std::min(chunk_pairs, pairs - begin), scratch, counters, fallbacks);
+      solve_chunk(begin, std::min(chunk_pairs, pairs - begin), scratch, counters, tally);
       evaluations += counters.lane_evaluations;
       prefilter += counters.decided_by_prefilter;
       certificate += counters.decided_by_certificate;
     }
+#pragma omp critical(pwcontact_tally)
+    total.add(tally);
   }
-  report.fallbacks = fallbacks;
+  report.fallbacks = total.fallbacks;
+  for (int s = 0; s < status_count; ++s) {
+    report.status_counts[s] = total.status_counts[s];
+    if (!is_valid(static_cast<Status>(s))) report.invalid += total.status_counts[s];
+  }
+  report.overlapping = total.overlapping;
   report.decided_by_prefilter = prefilter;
   report.decided_by_certificate = certificate;
   report.mean_evaluations = pairs ? double(evaluations) / double(pairs) : 0;
 }
 
-void count_statuses(const Status* status, std::size_t n, BatchReport& report) {
-  for (std::size_t i = 0; i < n; ++i) ++report.status_counts[static_cast<int>(status[i])];
-  for (int s = 0; s < status_count; ++s)
-    if (!is_valid(static_cast<Status>(s))) report.invalid += report.status_counts[s];
+// Calls `answer(i)` for every lane of [begin, begin + n) the kernels left
+// (status needs_fallback; they wrote ok or needs_fallback for every lane),
+// which gives it its final status, and tallies the chunk's statuses.
+template <class Answer>
+void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTally& tally,
+                       Answer&& answer) {
+  static_assert(sizeof(Status) == 1, "statuses are searched for as bytes");
+  const unsigned char* const first = reinterpret_cast<const unsigned char*>(status);
+  const unsigned char* at = first + begin;
+  const unsigned char* const end = at + n;
+  std::size_t left = 0;
+  while (const void* found = std::memchr(at, int(std::uint8_t(kernels::needs_fallback)),
+                                         std::size_t(end - at))) {
+    const std::size_t i = std::size_t(static_cast<const unsigned char*>(found) - first);
+    answer(i);
+    ++left;
+    ++tally.status_counts[static_cast<int>(status[i])];
+    at = static_cast<const unsigned char*>(found) + 1;
+  }
+  tally.status_counts[static_cast<int>(Status::ok)] += n - left;
+}
+
+// The number of ones among n bytes that are each 0 or 1.
+std::size_t count_ones(const std::uint8_t* bytes, std::size_t n) {
+  std::size_t ones = 0, i = 0;
+  for (; i + 8 <= n; i += 8) {
+    std::uint64_t word;
+    std::memcpy(&word, bytes + i, 8);
+    ones += std::size_t(__builtin_popcountll(word));
+  }
+  for (; i < n; ++i) ones += bytes[i];
+  return ones;
 }
 
 kernels::ChunkSettings chunk_settings(const BatchReport& report, const BatchOptions& options) {
@@ -264,7 +316,7 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   Status* const status = out.status ? out.status : scratch_status.data();
   run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-                                     kernels::ChunkCounters& counters, std::size_t& fallbacks) {
+                                     kernels::ChunkCounters& counters, ChunkTally& tally) {
     kernels::ResultSpan<T> result{out.mu2 + begin, out.lambda ? out.lambda + begin : nullptr,
                                   status + begin, {}, {}, {}};
     for (int k = 0; k < 3; ++k) {
@@ -273,11 +325,10 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
       if (bits & kernels::with_gradient) result.gradient[k] = out.gradient[k] + begin;
     }
     kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
-    for (std::size_t i = begin; i < begin + n; ++i)
-      if (status[i] == kernels::needs_fallback)
-        fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
+    answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
+      tally.fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
+    });
   });
-  count_statuses(status, pairs.size, report);
   return report;
 }
 
@@ -300,20 +351,18 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   Status* const status = out.status ? out.status : scratch_status.data();
   run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-                                     kernels::ChunkCounters& counters, std::size_t& fallbacks) {
+                                     kernels::ChunkCounters& counters, ChunkTally& tally) {
     kernel(span_at(pairs, begin), {out.overlap + begin, status + begin}, n, settings, scratch,
            counters);
-    for (std::size_t i = begin; i < begin + n; ++i) {
-      if (status[i] != kernels::needs_fallback) continue;
+    answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
       const ScalarPair p = scalar_pair(pairs, i);
       const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
       out.overlap[i] = ref.status == Status::ok && ref.mu2 < settings.cutoff_mu2;
       status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
-      fallbacks += ref.status == Status::ok || ref.status == Status::not_converged;
-    }
+      tally.fallbacks += ref.status == Status::ok || ref.status == Status::not_converged;
+    });
+    tally.overlapping += count_ones(out.overlap + begin, n);
   });
-  count_statuses(status, pairs.size, report);
-  for (std::size_t i = 0; i < pairs.size; ++i) report.overlapping += out.overlap[i];
   return report;
 }
 

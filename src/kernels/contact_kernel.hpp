@@ -197,12 +197,14 @@ class FullBlock : public LaneGroups<Arch, T> {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
-      lambda_[u] = initial_guess(p);
+      const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
+      const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
+      const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
+      const B guess = w1 / (w1 + w2);
+      lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
-      // Positive definiteness from the leading principal minors (Sylvester).
-      live_[u] = this->usable(u) & Adjugate<B>(p.q1).positive_definite(p.q1) &
-                 Adjugate<B>(p.q2).positive_definite(p.q2);
+      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2);
       // Coincident centres: mu^2 = 0.
       coincident_[u] = live_[u] & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
@@ -508,7 +510,7 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
       in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
         first_pass_block<Arch, T, In, Out>(span, from, position, real, first, handoff, state, out,
                                            settings, counters, kept);
-      });
+      }, 4);
   if (handoff == Handoff::adaptive) {
     pack_unfinished<Arch>(in, n, out.status, state, kept);
     later_passes<Arch, T>(kept, out, first, settings, counters);
