@@ -123,8 +123,10 @@ enum class Precision {
   double_precision,  // double pairs only
   single_precision,  // iterate and answer in float (double pairs are rounded to float)
   mixed,             // double pairs only: iterate in float lanes (twice as many per
-                     // register), then finish with double Newton steps and a double
-                     // convergence check: double accuracy at nearly float speed
+                     // register), then finish with a double Newton step and a double
+                     // convergence check: double accuracy. Measured no faster than
+                     // double on Zen 4 (README, "The trade"): loading the pair twice
+                     // and the double finish cost what the float steps save.
 };
 
 // How accurately the final mu^2 is evaluated.

@@ -224,8 +224,9 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
              options.precision,
              "arithmetic of the batch path: double; float, on the numbers rounded to "
              "float (mu^2 to ~1e-5 relative, the fastest); or mixed, float iterations "
-             "then double Newton steps and a double convergence check (double accuracy "
-             "at nearly float speed). Pairs the lanes do not finish are answered in "
+             "then a double Newton step and a double convergence check (double accuracy; "
+             "measured about as fast as double on AVX-512, see the README). Pairs the "
+             "lanes do not finish are answered in "
              "double by the reference path (status 1)");
   parser.add_value(
       {"--iterations"}, "N|auto", "auto",

@@ -126,8 +126,25 @@ PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p, bool always = false) {
   const B low(KernelTolerance<T>::safe_scale_low), high(KernelTolerance<T>::safe_scale_high);
   if (!always && xsimd::all((largest >= low) & (largest <= high))) return B(1);
   const B infinity(std::numeric_limits<T>::infinity());
-  const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
-  const B t = xsimd::select((power > B(0)) & (power < infinity), B(1) / power, B(1));
+  B t;
+  if (xsimd::any((largest > B(0)) & (largest < B(std::numeric_limits<T>::min())))) {
+    // A subnormal diagonal (rare): its exponent bits do not give its scale.
+    const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
+    t = xsimd::select((power > B(0)) & (power < infinity), B(1) / power, B(1));
+  } else {
+    // The same t from the exponent bits alone (no square root or division:
+    // measured 4 % of a mixed-precision solve): for largest = m 2^e with m in
+    // [1, 2), sqrt(largest) is in [1, 2) 2^floor(e/2) (rounding cannot reach
+    // the next power of two), so t = 2^-floor(e/2), an arithmetic shift of
+    // the unbiased exponent.
+    using I = xsimd::batch<xsimd::as_integer_t<T>, typename B::arch_type>;
+    constexpr int mantissa_bits = std::numeric_limits<T>::digits - 1;
+    constexpr int bias = std::numeric_limits<T>::max_exponent - 1;
+    const I e = (xsimd::bitwise_cast<I>(largest) >> mantissa_bits) - I(bias);
+    const I biased_t = I(bias) - (e >> 1);
+    t = xsimd::select((largest > B(0)) & (largest < infinity),
+                      xsimd::bitwise_cast<B>(biased_t << mantissa_bits), B(1));
+  }
   const B t2 = t * t;
   for (int k = 0; k < 3; ++k) p.r[k] *= t;
   for (int k = 0; k < 6; ++k) {
