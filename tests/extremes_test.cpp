@@ -248,27 +248,31 @@ TEST_P(Extremes, NearlySingularQGivesAnAnswerWithinTheConditionedFloorOrAStatus)
 // mu = |r| / (a1 + a2) and lambda* = a1 / (a1 + a2) exactly (a_i = sqrt(q_i),
 // from the stored q_i).
 
-TEST_P(Extremes, SpheresWithLambdaNearZeroOrOneGiveTheClosedForm) {
-  // mu^2: a handful of roundings (reference_test measures <= 2.2 eps for the
-  // scalar path); 8 eps of the arithmetic. Single precision rounds the
-  // inputs to float first, a few float eps more. lambda: within 1e-12
-  // (batch.hpp) in double and mixed precision; in single precision, the
-  // float floor of lambda, 4e-6 (LaneTolerance<float>). Measured: 1.4 eps
-  // (double, mixed), 4.0 float eps (single); lambda 1.1e-13 (mixed), 4.7e-7
-  // (single).
-  Engine engine(104);
-  const double radii[] = {1e-4, 1e-2, 1, 1e2, 1e4};
+// Two spheres of radii a1, a2 (each pair of `radii`, both ways round) at a
+// random distance between 0.5 and 2 times contact, in a random direction.
+std::vector<Pair<double>> sphere_pairs(const std::vector<std::pair<double, double>>& radii,
+                                       std::uint64_t seed) {
+  Engine engine(seed);
   std::vector<Pair<double>> pairs;
-  for (double a1 : radii)
-    for (double a2 : radii) {
-      const Eigen::Vector3d n = random_rotation(engine).col(0);
-      const double d = (a1 + a2) * (0.5 + 1.5 * uniform01(engine));
-      pairs.push_back(
-          make_pair({d * n[0], d * n[1], d * n[2]}, pwcontact::sphere(a1), pwcontact::sphere(a2)));
-    }
+  for (const auto& [a1, a2] : radii) {
+    const Eigen::Vector3d n = random_rotation(engine).col(0);
+    const double d = (a1 + a2) * (0.5 + 1.5 * uniform01(engine));
+    pairs.push_back(
+        make_pair({d * n[0], d * n[1], d * n[2]}, pwcontact::sphere(a1), pwcontact::sphere(a2)));
+  }
+  return pairs;
+}
+
+// mu^2: a handful of roundings (reference_test measures <= 2.2 eps for the
+// scalar path); 8 eps of the arithmetic. Single precision rounds the
+// inputs to float first, a few float eps more. lambda: within 1e-12
+// (batch.hpp) in double and mixed precision; in single precision, the
+// float floor of lambda, 4e-6 (LaneTolerance<float>).
+void expect_spheres_closed_form(const std::vector<Pair<double>>& pairs, Isa isa,
+                                const std::string& name) {
   for (Precision precision : precisions) {
-    const std::string label = what("spheres", GetParam(), precision);
-    const BatchRun<double> run = run_batch(make_batch(pairs), options_for(GetParam(), precision));
+    const std::string label = what(name, isa, precision);
+    const BatchRun<double> run = run_batch(make_batch(pairs), options_for(isa, precision));
     MaxError mu2_error, lambda_error;
     for (std::size_t i = 0; i < pairs.size(); ++i) {
       const Pair<double>& p = pairs[i];
@@ -288,6 +292,29 @@ TEST_P(Extremes, SpheresWithLambdaNearZeroOrOneGiveTheClosedForm) {
                                       : LaneTolerance<double>::lambda)
         << label << ", pair " << lambda_error.index;
   }
+}
+
+TEST_P(Extremes, SpheresWithLambdaNearZeroOrOneGiveTheClosedForm) {
+  // Radii 1e-4 .. 1e4 against each other. Measured: 1.4 eps (double,
+  // mixed), 4.0 float eps (single); lambda 1.1e-13 (mixed), 4.7e-7 (single).
+  const double radii[] = {1e-4, 1e-2, 1, 1e2, 1e4};
+  std::vector<std::pair<double, double>> sizes;
+  for (double a1 : radii)
+    for (double a2 : radii) sizes.push_back({a1, a2});
+  expect_spheres_closed_form(sphere_pairs(sizes, 104), GetParam(), "spheres");
+}
+
+TEST_P(Extremes, SizeRatiosBeyondWhatLambdaResolvesGiveTheClosedForm) {
+  // Radius ratios 1e-6 .. 1e-140: beyond ~1e-16 (~1e-7 in float) lambda* =
+  // a1 / (a1 + a2) rounds to 1, where f(1) = 0. The answer must still be
+  // mu^2 to 8 eps: at the largest lambda below 1, f is within one eps of
+  // mu^2 (concavity). Both ways round (lambda* near 0 too).
+  std::vector<std::pair<double, double>> sizes;
+  for (double ratio : {1e-6, 1e-12, 1e-15, 1e-16, 1e-17, 1e-20, 1e-50, 1e-100, 1e-140}) {
+    sizes.push_back({1, ratio});
+    sizes.push_back({ratio, 1});
+  }
+  expect_spheres_closed_form(sphere_pairs(sizes, 107), GetParam(), "size ratios beyond lambda's resolution");
 }
 
 // ---------------------------------------------------------------------------

@@ -241,7 +241,15 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
     return {T(0), t1 / (t1 + t2), Status::ok, 0};
   }
 
+  // lambda stays at or below the largest number under 1: f(1) = 0, while a
+  // maximiser closer to 1 than that (size ratios beyond ~1e16, where the
+  // radial guess and the steps round to 1) is represented by it to a
+  // relative 2^-digits in f (concavity: f(l) >= l mu^2 / lambda* on
+  // [0, lambda*]). The side of 0 needs nothing: lambda* ~ a1 / a2 there, and
+  // the nondimensionalised forms keep that far above the smallest number.
+  const T below_one = T(1) - eps / 2;
   T lambda = detail::radial_initial_guess(slope0, slope1);
+  if (lambda > below_one) lambda = below_one;
   T lo = 0, hi = 1;
   T previous_step = 1;
   for (int it = 1; it <= options.max_iterations; ++it) {
@@ -253,6 +261,7 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
     T next = lambda - step;
     const bool newton = lo <= next && next <= hi;  // inclusive, see header
     if (!newton) next = (lo + hi) / 2;
+    if (next > below_one) next = below_one;
 
     // Done when lambda no longer moves at its own precision, or when Newton
     // has stalled on round-off noise in g while the predicted gain in mu^2,
