@@ -6,4 +6,5 @@
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/families.hpp"
 #include "pwcontact/reference.hpp"
+#include "pwcontact/screen.hpp"
 #include "pwcontact/status.hpp"

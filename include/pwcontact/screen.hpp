@@ -1,0 +1,108 @@
+// Screening a scene: from N ellipsoids in a box to every pair (i < j) with
+// mu < mu_cut (mu_cut = 1: the overlapping pairs; mu_cut > 1: a neighbour
+// list with a skin), built on the batch path.
+//
+// Pipeline (screen_pairs):
+//  1. candidates from cell lists, one per size class of bounding radius, so
+//     that a polydisperse scene does not make every cell as large as the
+//     largest particle's reach;
+//  2. prefilters: |r| >= mu_cut (R_i + R_j) => out, |r| < mu_cut (rho_i + rho_j)
+//     => in (R: bounding radius, rho: inscribed radius), no solve needed;
+//  3. the undecided pairs compacted into a SoA batch for overlap_batch (or
+//     contact_function_batch when mu^2 is asked for);
+//  4. the pairs found, sorted by i then j whatever the thread count.
+//
+// Plain types only, like the rest of the public API.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "pwcontact/batch.hpp"
+
+namespace pwcontact {
+
+// Open boundaries, or a periodic orthorhombic box [0, L) (any origin: the
+// minimum image convention only uses differences).
+struct Box {
+  bool periodic = false;
+  std::array<double, 3> length = {0, 0, 0};
+
+  static Box open() { return {}; }
+  // Throws std::invalid_argument unless every length is positive and finite.
+  static Box periodic_box(double lx, double ly, double lz);
+};
+
+// Particles as structure of arrays: centre, quadratic form Q (6 numbers,
+// upper triangle row-major, theory eq. 3), and the radii of the spheres
+// about the centre that contain it (bounding, the largest semi-axis) and
+// that it contains (inscribed, the smallest). The radii are rounded outwards
+// and inwards so that the prefilters stay exact: bounding a little larger,
+// inscribed a little smaller than the eigenvalues of the stored Q give.
+class ParticleStore {
+ public:
+  std::size_t size() const noexcept { return centre_[0].size(); }
+  void reserve(std::size_t n);
+
+  // Q must be finite and positive definite (std::invalid_argument naming the
+  // particle otherwise): a scene with an invalid particle has no answer.
+  void add(const std::array<double, 3>& centre, const std::array<double, 6>& q);
+  // Semi-axes along the body axes rotated by the unit quaternion (w, x, y, z),
+  // converted to Q once (quadratic_form_from_quaternion).
+  void add_axes(const std::array<double, 3>& centre, const std::array<double, 3>& semi_axes,
+                const std::array<double, 4>& quaternion);
+
+  const std::vector<double>& centre(int k) const { return centre_[k]; }
+  const std::vector<double>& q(int k) const { return q_[k]; }
+  const std::vector<double>& bounding_radius() const { return bounding_; }
+  const std::vector<double>& inscribed_radius() const { return inscribed_; }
+
+ private:
+  std::vector<double> centre_[3], q_[6], bounding_, inscribed_;
+};
+
+struct ScreenOptions {
+  double cutoff = 1;      // mu_cut: a pair is found when mu < cutoff; positive and finite
+  bool with_mu2 = false;  // also report mu^2 of every pair found (then every pair within
+                          // the bounding reach is solved: the inscribed prefilter gives no mu^2)
+  int threads = 0;        // OpenMP threads for every stage; 0: omp_get_max_threads()
+  BatchOptions batch;     // precision, isa, ... of the solve (its threads are ignored)
+};
+
+// The pairs found: i[k] < j[k], sorted by i then j; mu2[k] with with_mu2.
+struct ScreenedPairs {
+  std::vector<std::uint32_t> i, j;
+  std::vector<double> mu2;
+  std::size_t size() const noexcept { return i.size(); }
+};
+
+// What a screen did, stage by stage.
+struct ScreenReport {
+  std::size_t particles = 0;
+  std::size_t size_classes = 0;        // cell lists built (one per class of bounding radius)
+  std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
+  std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
+  std::size_t decided_in = 0;          // |r| < cutoff (rho_i + rho_j): found, no solve
+  std::size_t solved = 0;              // pairs given to the batch path
+  std::size_t invalid = 0;             // solved pairs with an invalid status (not found)
+  std::size_t found = 0;
+  BatchReport batch;                   // of the solve
+  // Seconds per stage: size classes and cell lists; candidates and
+  // prefilters; compaction into a batch; the solve; collecting and sorting.
+  double seconds_cells = 0, seconds_candidates = 0, seconds_compaction = 0, seconds_solve = 0,
+         seconds_output = 0;
+  double seconds_total() const {
+    return seconds_cells + seconds_candidates + seconds_compaction + seconds_solve + seconds_output;
+  }
+};
+
+// Every pair of the store with mu < options.cutoff. Throws
+// std::invalid_argument for a bad cutoff, 2^31 particles or more, or a
+// periodic box shorter than twice the largest reach cutoff * 2 max R in some
+// direction (the minimum image would then miss pairs).
+ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
+                          const ScreenOptions& options, ScreenedPairs& out);
+
+}  // namespace pwcontact

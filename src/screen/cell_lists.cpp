@@ -1,0 +1,137 @@
+#include "screen/cell_lists.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace pwcontact::screen {
+namespace {
+
+// Classes halve the bounding radius: beyond eight (a factor 128), the last
+// class takes every smaller particle, whose cells are then larger than they
+// need be (still correct).
+constexpr int max_classes = 8;
+
+// Cells per grid at most this many per member (and at least 64 in all):
+// sparse scenes in open boundaries would otherwise ask for huge grids.
+constexpr double max_cells_per_member = 2;
+
+}  // namespace
+
+int CellLists::cell_of(const ClassGrid& grid, int k, double x) const {
+  const int n = grid.cells[k];
+  if (box.periodic) {
+    const double l = box.length[k];
+    const double wrapped = x - l * std::floor(x / l);  // [0, l], l only by rounding
+    const int c = int(wrapped * grid.inverse_side[k]);
+    return c >= n ? n - 1 : (c < 0 ? 0 : c);
+  }
+  const int c = int((x - origin[k]) * grid.inverse_side[k]);
+  return c >= n ? n - 1 : (c < 0 ? 0 : c);
+}
+
+CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
+                           int threads) {
+  CellLists lists;
+  lists.box = box;
+  const std::size_t n = particles.size();
+  const std::vector<double>& bounding = particles.bounding_radius();
+  lists.size_class.assign(n, 0);
+  if (n == 0) return lists;
+
+  double largest = 0;
+  std::array<double, 3> low, high;
+  for (int k = 0; k < 3; ++k) {
+    low[k] = std::numeric_limits<double>::infinity();
+    high[k] = -low[k];
+  }
+#pragma omp parallel for num_threads(threads) reduction(max : largest)
+  for (std::size_t i = 0; i < n; ++i) largest = std::max(largest, bounding[i]);
+  for (int k = 0; k < 3; ++k) {
+    const std::vector<double>& c = particles.centre(k);
+    double lo = low[k], hi = high[k];
+#pragma omp parallel for num_threads(threads) reduction(min : lo) reduction(max : hi)
+    for (std::size_t i = 0; i < n; ++i) {
+      lo = std::min(lo, c[i]);
+      hi = std::max(hi, c[i]);
+    }
+    low[k] = lo;
+    high[k] = hi;
+  }
+  lists.origin = low;
+
+  // Classes, then only the non-empty ones, largest radii first.
+  std::vector<std::uint8_t> raw(n);
+#pragma omp parallel for num_threads(threads)
+  for (std::size_t i = 0; i < n; ++i) {
+    const int halvings = std::ilogb(largest / bounding[i]);  // floor(log2), >= 0
+    raw[i] = std::uint8_t(std::min(std::max(halvings, 0), max_classes - 1));
+  }
+  std::size_t members[max_classes] = {};
+  double radius[max_classes] = {};
+  for (std::size_t i = 0; i < n; ++i) {
+    ++members[raw[i]];
+    radius[raw[i]] = std::max(radius[raw[i]], bounding[i]);
+  }
+  int compact[max_classes];
+  for (int c = 0; c < max_classes; ++c) {
+    compact[c] = int(lists.grids.size());
+    if (members[c] == 0) continue;
+    ClassGrid grid;
+    grid.radius = radius[c];
+    // Cells at least as wide as the reach of two of the class's largest
+    // members; fewer (wider) when that would make too many.
+    double side = 2 * cutoff * radius[c];
+    const double limit = std::max(64.0, max_cells_per_member * double(members[c]));
+    for (;;) {
+      double total = 1;
+      for (int k = 0; k < 3; ++k) {
+        const double extent = box.periodic ? box.length[k] : high[k] - low[k];
+        const double cells = box.periodic ? std::max(1.0, std::floor(extent / side))
+                                          : std::floor(extent / side) + 1;
+        grid.cells[k] = int(std::min(cells, 1e6));
+        grid.inverse_side[k] = box.periodic ? grid.cells[k] / extent : 1 / side;
+        total *= grid.cells[k];
+      }
+      if (total <= limit) break;
+      side *= std::cbrt(total / limit) * 1.01;
+    }
+    lists.grids.push_back(std::move(grid));
+  }
+  for (std::size_t i = 0; i < n; ++i) lists.size_class[i] = std::uint8_t(compact[raw[i]]);
+
+  // Counting sort of each class's members by cell, in particle order.
+  std::vector<std::uint32_t> cell(n);
+#pragma omp parallel for num_threads(threads)
+  for (std::size_t i = 0; i < n; ++i) {
+    const ClassGrid& grid = lists.grids[lists.size_class[i]];
+    const int a = lists.cell_of(grid, 0, particles.centre(0)[i]);
+    const int b = lists.cell_of(grid, 1, particles.centre(1)[i]);
+    const int c = lists.cell_of(grid, 2, particles.centre(2)[i]);
+    cell[i] = std::uint32_t((std::size_t(a) * std::size_t(grid.cells[1]) + std::size_t(b)) *
+                                std::size_t(grid.cells[2]) +
+                            std::size_t(c));
+  }
+  for (ClassGrid& grid : lists.grids) {
+    const std::size_t cells = std::size_t(grid.cells[0]) * grid.cells[1] * grid.cells[2];
+    grid.cell_start.assign(cells + 1, 0);
+  }
+  for (std::size_t i = 0; i < n; ++i) ++lists.grids[lists.size_class[i]].cell_start[cell[i] + 1];
+  for (ClassGrid& grid : lists.grids) {
+    for (std::size_t c = 1; c < grid.cell_start.size(); ++c)
+      grid.cell_start[c] += grid.cell_start[c - 1];
+    grid.members.resize(grid.cell_start.back());
+  }
+  std::vector<std::vector<std::uint32_t>> next(lists.grids.size());
+  for (std::size_t g = 0; g < lists.grids.size(); ++g)
+    next[g].assign(lists.grids[g].cell_start.begin(), lists.grids[g].cell_start.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int g = lists.size_class[i];
+    lists.grids[g].members[next[g][cell[i]]++] = std::uint32_t(i);
+  }
+  return lists;
+}
+
+}  // namespace pwcontact::screen

@@ -1,0 +1,64 @@
+// The particle store: centres, quadratic forms, and the bounding and
+// inscribed radii the screening prefilters use.
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "pwcontact/ellipsoid.hpp"
+#include "pwcontact/screen.hpp"
+
+namespace pwcontact {
+
+Box Box::periodic_box(double lx, double ly, double lz) {
+  for (double l : {lx, ly, lz})
+    if (!(l > 0) || !std::isfinite(l))
+      throw std::invalid_argument("Box: a periodic box needs positive, finite lengths, got " +
+                                  std::to_string(l));
+  Box box;
+  box.periodic = true;
+  box.length = {lx, ly, lz};
+  return box;
+}
+
+void ParticleStore::reserve(std::size_t n) {
+  for (auto& v : centre_) v.reserve(n);
+  for (auto& v : q_) v.reserve(n);
+  bounding_.reserve(n);
+  inscribed_.reserve(n);
+}
+
+void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
+  const std::string which = "ParticleStore: particle " + std::to_string(size());
+  for (double c : centre)
+    if (!std::isfinite(c)) throw std::invalid_argument(which + ": centre is not finite");
+  for (double v : q)
+    if (!std::isfinite(v)) throw std::invalid_argument(which + ": Q is not finite");
+  Eigen::Matrix3d m;
+  m << q[0], q[1], q[2], q[1], q[3], q[4], q[2], q[4], q[5];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m, Eigen::EigenvaluesOnly);
+  const double smallest = solver.eigenvalues()[0], largest = solver.eigenvalues()[2];
+  // The eigenvalues of a symmetric 3x3 matrix computed by Eigen's QR
+  // iteration err by a few eps |Q| (backward stable); 64 eps |Q| rounds the
+  // radii outwards (bounding) and inwards (inscribed) beyond that, so that
+  // both prefilters stay on the safe side.
+  const double slack = 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
+  if (!(smallest > slack))
+    throw std::invalid_argument(which + ": Q is not positive definite (smallest eigenvalue " +
+                                std::to_string(smallest) + ")");
+  const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
+  for (int k = 0; k < 3; ++k) centre_[k].push_back(centre[k]);
+  for (int k = 0; k < 6; ++k) q_[k].push_back(q[k]);
+  bounding_.push_back(std::sqrt(largest + slack) * up);
+  inscribed_.push_back(std::sqrt(smallest - slack) / up);
+}
+
+void ParticleStore::add_axes(const std::array<double, 3>& centre,
+                             const std::array<double, 3>& semi_axes,
+                             const std::array<double, 4>& quaternion) {
+  add(centre, quadratic_form_from_quaternion(semi_axes, quaternion));
+}
+
+}  // namespace pwcontact

@@ -1,0 +1,291 @@
+// Screening a scene against a brute-force O(N^2) scan with the scalar
+// reference path: the same pair sets on random scenes (monodisperse and
+// polydisperse, aspect ratios up to 50, periodic and open, dense and sparse,
+// pairs across the periodic boundary). Pairs within 1e-9 of the cutoff
+// (|mu^2 - cutoff^2| <= 1e-9 cutoff^2, the overlap answers' documented
+// band) may differ; they are counted and printed.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pwcontact/pwcontact.hpp"
+
+namespace {
+
+using pwcontact::Box;
+using pwcontact::ParticleStore;
+using pwcontact::ScreenedPairs;
+using pwcontact::ScreenOptions;
+using pwcontact::ScreenReport;
+
+struct SceneSpec {
+  std::size_t particles;
+  double min_aspect, max_aspect;  // spheroids: polar / equatorial radius
+  double min_size, max_size;      // equatorial radius, log-uniform
+  double box;                     // edge of the cube the centres are drawn in
+  bool periodic;
+  std::uint64_t seed;
+};
+
+// Random spheroids of the spec, uniformly placed, random orientations.
+ParticleStore make_scene(const SceneSpec& spec) {
+  std::mt19937_64 engine(spec.seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  ParticleStore store;
+  for (std::size_t n = 0; n < spec.particles; ++n) {
+    const double size = spec.min_size * std::pow(spec.max_size / spec.min_size, unit(engine));
+    const double aspect =
+        spec.min_aspect * std::pow(spec.max_aspect / spec.min_aspect, unit(engine));
+    std::array<double, 4> q;
+    for (double& c : q) c = normal(engine);
+    store.add_axes({spec.box * unit(engine), spec.box * unit(engine), spec.box * unit(engine)},
+                   {size, size, size * aspect}, q);
+  }
+  return store;
+}
+
+Box box_of(const SceneSpec& spec) {
+  return spec.periodic ? Box::periodic_box(spec.box, spec.box, spec.box) : Box::open();
+}
+
+// r12 = c_j - c_i, by the minimum image in a periodic box.
+std::array<double, 3> separation(const ParticleStore& s, const Box& box, std::size_t i,
+                                 std::size_t j) {
+  std::array<double, 3> r;
+  for (int k = 0; k < 3; ++k) {
+    r[k] = s.centre(k)[j] - s.centre(k)[i];
+    if (box.periodic) r[k] -= box.length[k] * std::nearbyint(r[k] / box.length[k]);
+  }
+  return r;
+}
+
+std::array<double, 6> form(const ParticleStore& s, std::size_t i) {
+  std::array<double, 6> q;
+  for (int k = 0; k < 6; ++k) q[k] = s.q(k)[i];
+  return q;
+}
+
+double reference_mu2(const ParticleStore& s, const Box& box, std::size_t i, std::size_t j) {
+  const auto r = separation(s, box, i, j);
+  const auto q1 = form(s, i), q2 = form(s, j);
+  const auto result = pwcontact::contact_function<double>(r.data(), q1.data(), q2.data());
+  EXPECT_EQ(result.status, pwcontact::Status::ok) << "pair " << i << " " << j;
+  return result.mu2;
+}
+
+// Every pair (i < j) with mu^2 < cutoff^2 by the scalar reference path.
+std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force(const ParticleStore& s,
+                                                              const Box& box, double cutoff) {
+  const std::size_t n = s.size();
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> rows(n);
+#pragma omp parallel for schedule(dynamic, 8)
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      if (reference_mu2(s, box, i, j) < cutoff * cutoff)
+        rows[i].push_back({std::uint32_t(i), std::uint32_t(j)});
+  std::set<std::pair<std::uint32_t, std::uint32_t>> all;
+  for (const auto& row : rows) all.insert(row.begin(), row.end());
+  return all;
+}
+
+struct Comparison {
+  std::size_t found = 0, expected = 0, differing_within_band = 0, across_boundary = 0;
+};
+
+// The screen's pairs against the brute force: sorted, i < j, and the same
+// set except for pairs within the band.
+Comparison compare(const ParticleStore& s, const Box& box, double cutoff,
+                   const ScreenedPairs& got, const std::string& what) {
+  Comparison c;
+  c.found = got.size();
+  std::set<std::pair<std::uint32_t, std::uint32_t>> screened;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    EXPECT_LT(got.i[k], got.j[k]) << what << ", entry " << k;
+    if (k > 0) {
+      EXPECT_LT(std::make_pair(got.i[k - 1], got.j[k - 1]), std::make_pair(got.i[k], got.j[k]))
+          << what << ": not sorted by i then j at entry " << k;
+    }
+    screened.insert({got.i[k], got.j[k]});
+    // Across the boundary: the minimum image differs from the plain difference.
+    bool across = false;
+    for (int a = 0; a < 3; ++a)
+      across = across || (box.periodic && std::abs(s.centre(a)[got.j[k]] - s.centre(a)[got.i[k]]) >
+                                              box.length[a] / 2);
+    c.across_boundary += across;
+  }
+  const auto expected = brute_force(s, box, cutoff);
+  c.expected = expected.size();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> differ;
+  std::set_symmetric_difference(screened.begin(), screened.end(), expected.begin(), expected.end(),
+                                std::back_inserter(differ));
+  for (const auto& [i, j] : differ) {
+    const double mu2 = reference_mu2(s, box, i, j);
+    const double band = 1e-9 * cutoff * cutoff;
+    if (std::abs(mu2 - cutoff * cutoff) <= band) {
+      ++c.differing_within_band;
+      continue;
+    }
+    ADD_FAILURE() << what << ": pair " << i << " " << j << " (mu^2 " << mu2 << ", cutoff^2 "
+                  << cutoff * cutoff << ") " << (screened.count({i, j}) ? "found" : "missed")
+                  << " by the screen, the opposite by the brute force";
+  }
+  std::printf("[ measured ] %s: %zu pairs found, %zu expected, %zu differing within 1e-9 of the "
+              "cutoff, %zu across the periodic boundary\n",
+              what.c_str(), c.found, c.expected, c.differing_within_band, c.across_boundary);
+  return c;
+}
+
+ScreenReport screen(const ParticleStore& s, const Box& box, double cutoff, ScreenedPairs& out,
+                    bool with_mu2 = false, int threads = 0) {
+  ScreenOptions options;
+  options.cutoff = cutoff;
+  options.with_mu2 = with_mu2;
+  options.threads = threads;
+  return pwcontact::screen_pairs(s, box, options, out);
+}
+
+// A scene of the spec, screened and compared; the stages must add up.
+Comparison expect_same_pairs(const SceneSpec& spec, double cutoff, const std::string& what) {
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, box, cutoff, got);
+  EXPECT_EQ(report.particles, spec.particles);
+  EXPECT_EQ(report.candidate_pairs, report.decided_out + report.decided_in + report.solved) << what;
+  EXPECT_EQ(report.found, got.size()) << what;
+  EXPECT_EQ(report.invalid, 0u) << what;
+  std::printf("[ measured ] %s: %zu size classes, %zu candidates, %zu out and %zu in by the "
+              "prefilters, %zu solved\n",
+              what.c_str(), report.size_classes, report.candidate_pairs, report.decided_out,
+              report.decided_in, report.solved);
+  return compare(s, box, cutoff, got, what);
+}
+
+TEST(Screen, MonodisperseSpheroidsInAPeriodicBoxMatchTheBruteForce) {
+  // Aspect ratios 1/3 .. 3, packing fraction ~0.3 (random placement: dense,
+  // many overlaps), pairs across the boundary.
+  const Comparison c =
+      expect_same_pairs({1000, 1.0 / 3, 3, 0.5, 0.5, 9.0, true, 1}, 1, "monodisperse, periodic");
+  EXPECT_GT(c.expected, 200u) << "the scene should be dense";
+  EXPECT_GT(c.across_boundary, 10u) << "pairs across the periodic boundary should be exercised";
+}
+
+TEST(Screen, PolydisperseEllipsoidsInOpenBoundariesMatchTheBruteForce) {
+  // Sizes over a factor 20 (several size classes), aspect ratios 1/5 .. 5.
+  expect_same_pairs({1200, 0.2, 5, 0.05, 1.0, 12.0, false, 2}, 1, "polydisperse, open");
+}
+
+TEST(Screen, NeedlesAndDiscsWithAspectRatiosTo50MatchTheBruteForce) {
+  // Equatorial radii 0.03 .. 0.05: needles up to 2.5 long, discs 6e-4 thin;
+  // enough of them that many touch.
+  const Comparison periodic =
+      expect_same_pairs({3000, 1.0 / 50, 50, 0.03, 0.05, 10.5, true, 3}, 1, "aspect to 50, periodic");
+  const Comparison open =
+      expect_same_pairs({3000, 1.0 / 50, 50, 0.03, 0.05, 10.5, false, 4}, 1, "aspect to 50, open");
+  EXPECT_GT(periodic.expected, 50u);
+  EXPECT_GT(open.expected, 50u);
+}
+
+TEST(Screen, SparseScenesMatchTheBruteForce) {
+  expect_same_pairs({600, 0.5, 2, 0.2, 0.5, 40.0, true, 5}, 1, "sparse, periodic");
+  expect_same_pairs({600, 0.5, 2, 0.2, 0.5, 40.0, false, 6}, 1, "sparse, open");
+}
+
+TEST(Screen, NeighbourListsWithASkinMatchTheBruteForceAndReportMu2) {
+  // cutoff 1.3 with mu^2: every pair found, with the batch path's mu^2 within
+  // its double accuracy of the reference's (1e-13 relative, the batch
+  // path's documented bound on compact shapes).
+  const SceneSpec spec{900, 0.25, 4, 0.1, 0.5, 11.0, true, 7};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, box, 1.3, got, true);
+  EXPECT_EQ(report.decided_in, 0u) << "with mu^2 every pair within reach is solved";
+  ASSERT_EQ(got.mu2.size(), got.size());
+  double worst = 0;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    const double exact = reference_mu2(s, box, got.i[k], got.j[k]);
+    worst = std::max(worst, std::abs(got.mu2[k] - exact) / exact);
+  }
+  std::printf("[ measured ] neighbour list: max relative error of mu^2 %.3g\n", worst);
+  EXPECT_LE(worst, 1e-13);
+  compare(s, box, 1.3, got, "neighbour list, cutoff 1.3");
+}
+
+TEST(Screen, ThePairsAndTheirOrderDoNotDependOnTheThreadCount) {
+  const SceneSpec spec{1500, 0.3, 3, 0.05, 0.6, 12.0, true, 8};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  ScreenedPairs one, two;
+  screen(s, box, 1.1, one, true, 1);
+  screen(s, box, 1.1, two, true, 2);
+  EXPECT_GT(one.size(), 100u);
+  EXPECT_EQ(one.i, two.i);
+  EXPECT_EQ(one.j, two.j);
+  EXPECT_EQ(one.mu2, two.mu2);
+}
+
+TEST(Screen, APeriodicBoxTooSmallForTheCutoffIsAnError) {
+  ParticleStore s;
+  s.add({0, 0, 0}, pwcontact::sphere(1.0));
+  s.add({1, 1, 1}, pwcontact::sphere(1.0));
+  ScreenedPairs out;
+  // Reach cutoff * 2 R_max = 2 (R_max rounded up by a few eps): the box must
+  // be at least 4 along every axis.
+  EXPECT_NO_THROW(screen(s, Box::periodic_box(4.01, 4.01, 4.01), 1, out));
+  try {
+    screen(s, Box::periodic_box(4.01, 3.9, 4.01), 1, out);
+    ADD_FAILURE() << "a box of 3.9 along y was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("too small"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(screen(s, Box::periodic_box(8, 8, 8), 0, out), std::invalid_argument);
+  EXPECT_THROW(screen(s, Box::periodic_box(8, 8, 8), std::nan(""), out), std::invalid_argument);
+}
+
+TEST(Screen, AParticleWhoseQIsNotPositiveDefiniteIsRejectedByTheStore) {
+  ParticleStore s;
+  s.add({0, 0, 0}, pwcontact::sphere(1.0));
+  try {
+    s.add({0, 0, 0}, {1, 0, 0, 1, 0, -1});
+    ADD_FAILURE() << "an indefinite Q was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("particle 1"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(s.add({0, 0, std::nan("")}, pwcontact::sphere(1.0)), std::invalid_argument);
+  EXPECT_EQ(s.size(), 1u);
+}
+
+TEST(Screen, RadiiBoundTheEllipsoid) {
+  // Semi-axes 0.5, 1, 3: bounding radius 3 and inscribed 0.5, rounded outwards
+  // and inwards by 64 eps of the largest eigenvalue (ParticleStore::add):
+  // relative 64 eps cond(Q) / 2 = 2.6e-13 for the inscribed one here.
+  ParticleStore s;
+  s.add_axes({0, 0, 0}, {0.5, 1, 3}, {0.3, -0.2, 0.9, 0.1});
+  EXPECT_GE(s.bounding_radius()[0], 3.0);
+  EXPECT_LE(s.bounding_radius()[0], 3.0 * (1 + 1e-13));
+  EXPECT_LE(s.inscribed_radius()[0], 0.5);
+  EXPECT_GE(s.inscribed_radius()[0], 0.5 * (1 - 1e-12));
+}
+
+TEST(Screen, AnEmptySceneAndASingleParticleFindNothing) {
+  ParticleStore s;
+  ScreenedPairs out;
+  EXPECT_EQ(screen(s, Box::open(), 1, out).found, 0u);
+  s.add({0, 0, 0}, pwcontact::sphere(1.0));
+  EXPECT_EQ(screen(s, Box::periodic_box(5, 5, 5), 1, out).found, 0u);
+  EXPECT_EQ(out.size(), 0u);
+}
+
+}  // namespace
