@@ -22,13 +22,7 @@ constexpr double max_cells_per_member = 2;
 
 int CellLists::cell_of(const ClassGrid& grid, int k, double x) const {
   const int n = grid.cells[k];
-  if (box.periodic) {
-    const double l = box.length[k];
-    const double wrapped = x - l * std::floor(x / l);  // [0, l], l only by rounding
-    const int c = int(wrapped * grid.inverse_side[k]);
-    return c >= n ? n - 1 : (c < 0 ? 0 : c);
-  }
-  const int c = int((x - origin[k]) * grid.inverse_side[k]);
+  const int c = int((box.periodic ? x : x - origin[k]) * grid.inverse_side[k]);
   return c >= n ? n - 1 : (c < 0 ? 0 : c);
 }
 
@@ -107,9 +101,9 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     const ClassGrid& grid = lists.grids[lists.size_class[i]];
-    const int a = lists.cell_of(grid, 0, particles.centre(0)[i]);
-    const int b = lists.cell_of(grid, 1, particles.centre(1)[i]);
-    const int c = lists.cell_of(grid, 2, particles.centre(2)[i]);
+    const int a = lists.cell_of(grid, 0, lists.wrapped(0, particles.centre(0)[i]));
+    const int b = lists.cell_of(grid, 1, lists.wrapped(1, particles.centre(1)[i]));
+    const int c = lists.cell_of(grid, 2, lists.wrapped(2, particles.centre(2)[i]));
     cell[i] = std::uint32_t((std::size_t(a) * std::size_t(grid.cells[1]) + std::size_t(b)) *
                                 std::size_t(grid.cells[2]) +
                             std::size_t(c));
@@ -130,6 +124,24 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   for (std::size_t i = 0; i < n; ++i) {
     const int g = lists.size_class[i];
     lists.grids[g].members[next[g][cell[i]]++] = std::uint32_t(i);
+  }
+  for (ClassGrid& grid : lists.grids) {
+    const std::size_t m = grid.members.size();
+    for (auto& v : grid.position) v.resize(m);
+    for (auto& v : grid.image) v.assign(m, 0);
+    grid.bounding.resize(m);
+    grid.inscribed.resize(m);
+#pragma omp parallel for num_threads(threads)
+    for (std::size_t at = 0; at < m; ++at) {
+      const std::uint32_t i = grid.members[at];
+      for (int k = 0; k < 3; ++k) {
+        const double x = particles.centre(k)[i];
+        grid.position[k][at] = x;
+        if (box.periodic) grid.image[k][at] = std::int32_t(std::floor(x / box.length[k]));
+      }
+      grid.bounding[at] = bounding[i];
+      grid.inscribed[at] = particles.inscribed_radius()[i];
+    }
   }
   return lists;
 }

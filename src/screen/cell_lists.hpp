@@ -13,6 +13,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -22,13 +23,21 @@
 namespace pwcontact::screen {
 
 // One class's grid: its members sorted by cell (counting sort, stable, so
-// the order is that of the particle indices within a cell).
+// the order is that of the particle indices within a cell), with copies of
+// what the candidate search reads, in that order: a cell's members are then
+// contiguous in memory (the search streams through them instead of jumping
+// across the particle arrays). Positions are kept as given, with the number
+// of box lengths that wraps them into the box (periodic boxes), so that a
+// pair's r12 is the plain difference of its centres plus one multiple of the
+// box length, rounded once (wrapped coordinates would cost eps L of it).
 struct ClassGrid {
   double radius = 0;                   // the largest bounding radius in the class
   std::array<int, 3> cells = {1, 1, 1};
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
   std::vector<std::uint32_t> cell_start;  // cells + 1 offsets into members
   std::vector<std::uint32_t> members;     // particle indices, by cell
+  std::vector<double> position[3], bounding, inscribed;  // by member
+  std::vector<std::int32_t> image[3];  // floor(x / L) per member (periodic), else 0
 };
 
 struct CellLists {
@@ -37,7 +46,13 @@ struct CellLists {
   std::vector<std::uint8_t> size_class;      // per particle
   std::vector<ClassGrid> grids;              // by class, largest radii first
 
-  // The cell of a position along axis k (wrapped into the box when periodic).
+  // A coordinate wrapped into [0, L] when periodic (as given otherwise).
+  double wrapped(int k, double x) const {
+    if (!box.periodic) return x;
+    const double l = box.length[k];
+    return x - l * std::floor(x / l);
+  }
+  // The cell of a (wrapped) coordinate along axis k.
   int cell_of(const ClassGrid& grid, int k, double x) const;
 };
 
@@ -45,40 +60,52 @@ struct CellLists {
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
                            int threads);
 
-// Calls visit(j) for every particle j of `grid` in the cells around the
-// position p (at most 27 cells, each visited once even when a periodic grid
-// has fewer than 3 cells along an axis).
+// Calls visit(begin, end, shift, nearest_image) for the members [begin, end)
+// of every cell of `grid` around the wrapped position p (at most 27 cells,
+// each once). shift (-1, 0 or 1 box lengths) takes a member's wrapped
+// position to its image nearest p's cell (periodic wrap-around); where a
+// periodic grid has fewer than 3 cells along an axis one cell can neighbour
+// p's from both sides, and nearest_image asks the caller to take the minimum
+// image itself.
 template <class Visit>
-void for_each_neighbour(const CellLists& lists, const ClassGrid& grid,
-                        const std::array<double, 3>& p, Visit&& visit) {
-  int centre[3], offsets[3][3], count[3];
+void for_each_neighbour_cell(const CellLists& lists, const ClassGrid& grid,
+                             const std::array<double, 3>& p, Visit&& visit) {
+  int cell[3][3], count[3];
+  int shift[3][3];
+  bool nearest_image = false;
   for (int k = 0; k < 3; ++k) {
-    centre[k] = lists.cell_of(grid, k, p[k]);
+    const int centre = lists.cell_of(grid, k, p[k]);
     const int n = grid.cells[k];
     count[k] = 0;
+    if (lists.box.periodic && n < 3) {
+      nearest_image = true;
+      for (int c = 0; c < n; ++c) cell[k][count[k]] = c, shift[k][count[k]++] = 0;
+      continue;
+    }
     for (int d = -1; d <= 1; ++d) {
-      int c = centre[k] + d;
+      int c = centre + d;
+      int s = 0;
       if (lists.box.periodic) {
-        c = (c + n) % n;
-        bool seen = false;
-        for (int m = 0; m < count[k]; ++m) seen = seen || offsets[k][m] == c;
-        if (seen) continue;
+        if (c < 0) c += n, s = -1;
+        if (c >= n) c -= n, s = 1;
       } else if (c < 0 || c >= n) {
         continue;
       }
-      offsets[k][count[k]++] = c;
+      cell[k][count[k]] = c;
+      shift[k][count[k]++] = s;
     }
   }
   for (int a = 0; a < count[0]; ++a)
-    for (int b = 0; b < count[1]; ++b)
+    for (int b = 0; b < count[1]; ++b) {
+      const std::size_t row =
+          (std::size_t(cell[0][a]) * std::size_t(grid.cells[1]) + std::size_t(cell[1][b])) *
+          std::size_t(grid.cells[2]);
       for (int c = 0; c < count[2]; ++c) {
-        const std::size_t cell =
-            (std::size_t(offsets[0][a]) * std::size_t(grid.cells[1]) + std::size_t(offsets[1][b])) *
-                std::size_t(grid.cells[2]) +
-            std::size_t(offsets[2][c]);
-        for (std::uint32_t m = grid.cell_start[cell]; m < grid.cell_start[cell + 1]; ++m)
-          visit(grid.members[m]);
+        const std::size_t at = row + std::size_t(cell[2][c]);
+        const int s[3] = {shift[0][a], shift[1][b], shift[2][c]};
+        visit(grid.cell_start[at], grid.cell_start[at + 1], s, nearest_image);
       }
+    }
 }
 
 }  // namespace pwcontact::screen

@@ -62,7 +62,6 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   report.particles = particles.size();
   out = {};
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
-  const std::size_t n = particles.size();
   const double cutoff = options.cutoff;
 
   double t0 = omp_get_wtime();
@@ -71,46 +70,63 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   double t1 = omp_get_wtime();
   report.seconds_cells = t1 - t0;
 
-  // Candidates and prefilters, each thread over a share of the particles.
-  const std::vector<double>* centre[3] = {&particles.centre(0), &particles.centre(1),
-                                          &particles.centre(2)};
-  const std::vector<double>& bounding = particles.bounding_radius();
-  const std::vector<double>& inscribed = particles.inscribed_radius();
+  // Candidates and prefilters: each class's members in cell order (the
+  // neighbour cells of consecutive members are the same, and in cache),
+  // shared among the threads.
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
 #pragma omp parallel num_threads(threads)
   {
     ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
+    for (std::size_t own = 0; own < lists.grids.size(); ++own) {
+      const screen::ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::array<double, 3> p = {(*centre[0])[i], (*centre[1])[i], (*centre[2])[i]};
-      const int own = lists.size_class[i];
-      // Classes of radii at least as large as i's (indices 0 .. own).
-      for (int g = 0; g <= own; ++g) {
-        screen::for_each_neighbour(lists, lists.grids[std::size_t(g)], p, [&](std::uint32_t j) {
-          if (g == own && j <= i) return;  // within a class, from the lower index
-          ++mine.candidates;
-          double r[3], rr = 0;
-          for (int k = 0; k < 3; ++k) {
-            r[k] = (*centre[k])[j] - p[k];
-            if (box.periodic) r[k] -= box.length[k] * std::nearbyint(r[k] / box.length[k]);
-            rr += r[k] * r[k];
-          }
-          const double reach = cutoff * (bounding[i] + bounding[j]);
-          if (rr >= reach * reach) {
-            ++mine.out;
-            return;
-          }
-          const std::uint32_t a = std::min<std::uint32_t>(std::uint32_t(i), j);
-          const std::uint32_t b = std::max<std::uint32_t>(std::uint32_t(i), j);
-          const double inner = cutoff * (inscribed[i] + inscribed[j]);
-          if (!options.with_mu2 && rr < inner * inner) {
-            mine.found.push_back(pair_key(a, b));
-            return;
-          }
-          // r12 from the lower index to the higher: the pair as (a, b).
-          const double sign = a == i ? 1 : -1;
-          mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]}});
-        });
+      for (std::size_t at = 0; at < home.members.size(); ++at) {
+        const std::uint32_t i = home.members[at];
+        // The cell search takes the wrapped position; r12 the given centres.
+        const std::array<double, 3> c = {home.position[0][at], home.position[1][at],
+                                         home.position[2][at]};
+        const std::array<double, 3> p = {lists.wrapped(0, c[0]), lists.wrapped(1, c[1]),
+                                         lists.wrapped(2, c[2])};
+        const std::int32_t image_i[3] = {home.image[0][at], home.image[1][at], home.image[2][at]};
+        const double bounding_i = home.bounding[at], inscribed_i = home.inscribed[at];
+        // Classes of radii at least as large as i's (indices 0 .. own).
+        for (std::size_t g = 0; g <= own; ++g) {
+          const screen::ClassGrid& grid = lists.grids[g];
+          screen::for_each_neighbour_cell(
+              lists, grid, p,
+              [&](std::uint32_t begin, std::uint32_t end, const int (&shift)[3],
+                  bool nearest_image) {
+                for (std::uint32_t m = begin; m < end; ++m) {
+                  const std::uint32_t j = grid.members[m];
+                  if (g == own && j <= i) continue;  // within a class, from the lower index
+                  ++mine.candidates;
+                  double r[3];
+                  for (int k = 0; k < 3; ++k) {
+                    r[k] = grid.position[k][m] - c[k];
+                    const int lengths = shift[k] - (grid.image[k][m] - image_i[k]);
+                    if (lengths != 0) r[k] += double(lengths) * box.length[k];
+                  }
+                  if (nearest_image)
+                    for (int k = 0; k < 3; ++k)
+                      r[k] -= box.length[k] * std::nearbyint(r[k] / box.length[k]);
+                  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                  const double reach = cutoff * (bounding_i + grid.bounding[m]);
+                  if (rr >= reach * reach) {
+                    ++mine.out;
+                    continue;
+                  }
+                  const std::uint32_t a = std::min(i, j), b = std::max(i, j);
+                  const double inner = cutoff * (inscribed_i + grid.inscribed[m]);
+                  if (!options.with_mu2 && rr < inner * inner) {
+                    mine.found.push_back(pair_key(a, b));
+                    continue;
+                  }
+                  // r12 from the lower index to the higher: the pair as (a, b).
+                  const double sign = a == i ? 1 : -1;
+                  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]}});
+                }
+              });
+        }
       }
     }
   }
