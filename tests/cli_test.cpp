@@ -706,9 +706,17 @@ TEST_F(cli, HelpListsEveryStatusCodeAndEveryOption) {
           "mu2, lambda, status, contact_point, normal and gradient", "overlap status"})
       EXPECT_TRUE(contains(help, text)) << arguments << ": " << text;
   }
+  const std::string pairs_help = collapse_whitespace(run("pairs --help").out);
+  EXPECT_TRUE(contains(pairs_help, "--pairs N number of random pairs (default: 2000000)"))
+      << pairs_help;
   const std::string demo_help = collapse_whitespace(run("demo --help").out);
-  EXPECT_TRUE(contains(demo_help, "--pairs N number of random pairs (default: 2000000)"))
-      << demo_help;
+  for (const char* text : {"--n N number of spheroids (default: 1000000)", "(default: 0.3)",
+                           "--max-aspect A", "--seed S", "--cutoff MU"})
+    EXPECT_TRUE(contains(demo_help, text)) << text << "\n" << demo_help;
+  const std::string screen_help = collapse_whitespace(run("screen --help").out);
+  for (const char* text : {"--box LX LY LZ", "--cutoff MU", "--format q|axes", "--with-mu2",
+                           "--threads N", "-o, --output OUT", "x y z a b c qw qx qy qz"})
+    EXPECT_TRUE(contains(screen_help, text)) << text << "\n" << screen_help;
 }
 
 TEST_F(cli, VersionIsPrinted) {
@@ -741,7 +749,10 @@ INSTANTIATE_TEST_SUITE_P(
         "contact --threads", "contact --threads many", "contact --threads -1",
         "contact --iterations 1001", "contact --precision half", "contact --isa avx9",
         "contact --scalar=yes", "contact a.txt b.txt", "contact --scalar --iterations 2 a.txt",
-        "demo --pairs 0", "demo extra",
+        "pairs --pairs 0", "pairs extra", "demo extra", "demo --n 0", "demo --packing 1",
+        "demo --max-aspect 0.5", "screen --box 1 2", "screen --box 1 2 0 a.txt",
+        "screen --box 1 2 x a.txt", "screen --cutoff 0 a.txt", "screen --format xyz a.txt",
+        "screen a.txt b.txt",
         // Bad values of the options of the answer and the arithmetic
         "contact --mode both", "contact --precision auto", "contact --precision",
         "contact --iterations automatic", "contact --iterations -1", "contact --accuracy best",
@@ -750,9 +761,9 @@ INSTANTIATE_TEST_SUITE_P(
         "contact --mode overlap --cutoff nan", "contact --mode overlap --cutoff 1e999",
         "contact --mode overlap --cutoff 1x", "contact --outputs mu2,foo",
         "contact --outputs mu2,,lambda", "contact --outputs ''", "contact --outputs mu2,mu2",
-        "contact --outputs overlap", "demo --iterations never",
+        "contact --outputs overlap", "pairs --iterations never",
         // Combinations that do not apply
-        "contact --accuracy high --precision float a.txt", "demo --accuracy high --precision float",
+        "contact --accuracy high --precision float a.txt", "pairs --accuracy high --precision float",
         "contact --mode overlap --outputs mu2 a.txt",
         "contact --mode overlap --outputs overlap,status a.txt",
         "contact --mode overlap --accuracy standard a.txt", "contact --cutoff 2 a.txt",
@@ -830,12 +841,12 @@ TEST_F(cli, InstructionSetsTheCpuLacksAreAUsageError) {
 }
 
 // ---------------------------------------------------------------------------
-// The demo
+// The pairs demo and the demo
 
-TEST_F(cli, DemoReportsThroughputAndAccuracy) {
+TEST_F(cli, PairsReportsThroughputAndAccuracy) {
   for (const char* precision : {"double", "float", "mixed"}) {
     const Outcome result =
-        run(std::string("demo --pairs 3000 --iterations auto --precision ") + precision);
+        run(std::string("pairs --pairs 3000 --iterations auto --precision ") + precision);
     ASSERT_EQ(result.exit_status, 0) << result.err;
     for (const char* word : {"pairs/s", "speed-up", "fallbacks", "p99.9", "median"})
       EXPECT_TRUE(contains(result.out, word)) << precision << ": " << word;
@@ -844,6 +855,77 @@ TEST_F(cli, DemoReportsThroughputAndAccuracy) {
     EXPECT_LE(number_after(result.out, "max "), precision == std::string("float") ? 1e-5 : 1e-13)
         << result.out;
   }
+}
+
+TEST_F(cli, DemoScreensASceneAndReportsEveryStage) {
+  const Outcome result = run("demo --n 20000 --seed 3");
+  ASSERT_EQ(result.exit_status, 0) << result.err;
+  for (const char* word : {"20000 spheroids", "periodic box", "candidate pairs", "found",
+                           "cells", "candidates and prefilters", "compaction", "solve",
+                           "sorting", "total"})
+    EXPECT_TRUE(contains(result.out, word)) << word << "\n" << result.out;
+  // The same scene and the same pairs with one thread.
+  const Outcome one = run("demo --n 20000 --seed 3 --threads 1");
+  ASSERT_EQ(one.exit_status, 0) << one.err;
+  EXPECT_EQ(number_after(one.out, "found "), number_after(result.out, "found "));
+  EXPECT_GT(number_after(result.out, "found "), 1000) << "packing fraction 0.3: many overlaps";
+}
+
+// ---------------------------------------------------------------------------
+// screen
+
+TEST_F(cli, ScreenWritesThePairsSortedWithTheirMu2) {
+  // Spheres of radius 1: 0-1 at distance 1.5 (mu = 0.75), 0-2 across the
+  // periodic boundary at distance 1 (mu = 0.5), 1-2 across it at 2.5
+  // (mu = 1.25), 1-3 at distance 3 (mu = 1.5); the others farther.
+  write_file("spheres.txt",
+             "# x y z q\n"
+             "0.5 5 5  1 0 0 1 0 1\n"
+             "2 5 5  1 0 0 1 0 1\n"
+             "\n"
+             "9.5 5 5  1 0 0 1 0 1\n"
+             "5 5 5  1 0 0 1 0 1\n");
+  const Outcome overlaps = run("screen --box 10 10 10 spheres.txt");
+  ASSERT_EQ(overlaps.exit_status, 0) << overlaps.err;
+  EXPECT_EQ(overlaps.out, "0 1\n0 2\n");
+  EXPECT_TRUE(contains(overlaps.err, "candidate pairs")) << overlaps.err;
+  const Outcome open = run("screen spheres.txt");
+  EXPECT_EQ(open.out, "0 1\n") << "without --box, 0 and 2 are 9 apart";
+  const Outcome skin = run("screen --box 10 10 10 --cutoff 1.6 --with-mu2 spheres.txt");
+  ASSERT_EQ(skin.exit_status, 0) << skin.err;
+  EXPECT_EQ(skin.out, "0 1 0.5625\n0 2 0.25\n1 2 1.5625\n1 3 2.25\n");
+}
+
+TEST_F(cli, ScreenReadsSemiAxesAndQuaternions) {
+  // A needle (0.1, 0.1, 2) along z, and a sphere of radius 0.5 at z = 2.4:
+  // overlapping (mu^2 = (2.4 / 2.5)^2); rotated by 90 degrees about x the
+  // needle lies along y and the pair is apart.
+  write_file("axes.txt", "0 0 0  0.1 0.1 2  1 0 0 0\n0 0 2.4  0.5 0.5 0.5  1 0 0 0\n");
+  EXPECT_EQ(run("screen --format axes axes.txt").out, "0 1\n");
+  write_file("turned.txt",
+             "0 0 0  0.1 0.1 2  0.7071067811865476 0.7071067811865476 0 0\n"
+             "0 0 2.4  0.5 0.5 0.5  1 0 0 0\n");
+  EXPECT_EQ(run("screen --format axes turned.txt").out, "");
+}
+
+TEST_F(cli, ScreenStopsAtABadLineWithItsNumberAndWritesNothing) {
+  write_file("bad.txt", "0 0 0 1 0 0 1 0 1\n# comment\n1 0 0 1 0 0 1 0\n");
+  const Outcome short_line = run("screen -o pairs.txt bad.txt");
+  EXPECT_EQ(short_line.exit_status, 2);
+  EXPECT_TRUE(contains(short_line.err, "bad.txt:3")) << short_line.err;
+  EXPECT_FALSE(fs::exists(path("pairs.txt")));
+  write_file("indefinite.txt", "0 0 0 1 0 0 1 0 1\n\n1 0 0 1 0 0 1 0 -1\n");
+  const Outcome indefinite = run("screen indefinite.txt");
+  EXPECT_EQ(indefinite.exit_status, 2);
+  EXPECT_TRUE(contains(indefinite.err, "line 3")) << indefinite.err;
+  EXPECT_TRUE(contains(indefinite.err, "not positive definite")) << indefinite.err;
+  EXPECT_EQ(indefinite.out, "");
+  const Outcome small = run("screen --box 3 3 3 indefinite.txt");
+  EXPECT_EQ(small.exit_status, 2);
+  write_file("two.txt", "0 0 0 1 0 0 1 0 1\n1 0 0 1 0 0 1 0 1\n");
+  const Outcome too_small = run("screen --box 3 3 3 two.txt");
+  EXPECT_EQ(too_small.exit_status, 2);
+  EXPECT_TRUE(contains(too_small.err, "too small")) << too_small.err;
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "pwcontact/batch.hpp"
@@ -53,6 +54,10 @@ class ParticleStore {
   // converted to Q once (quadratic_form_from_quaternion).
   void add_axes(const std::array<double, 3>& centre, const std::array<double, 3>& semi_axes,
                 const std::array<double, 4>& quaternion);
+  // For filling in parallel: resize(n), then set(i, ...) for every i (from
+  // any thread, each i once), as add would (and with the same checks).
+  void resize(std::size_t n);
+  void set(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q);
 
   const std::vector<double>& centre(int k) const { return centre_[k]; }
   const std::vector<double>& q(int k) const { return q_[k]; }
@@ -69,6 +74,9 @@ struct ScreenOptions {
                           // the bounding reach is solved: the inscribed prefilter gives no mu^2)
   int threads = 0;        // OpenMP threads for every stage; 0: omp_get_max_threads()
   BatchOptions batch;     // precision, isa, ... of the solve (its threads are ignored)
+  // Called now and then from one thread with the fraction of the candidate
+  // search done (0 .. 1), e.g. for a progress bar; may be empty.
+  std::function<void(double fraction)> progress;
 };
 
 // The pairs found: i[k] < j[k], sorted by i then j; mu2[k] with with_mu2.
@@ -81,6 +89,7 @@ struct ScreenedPairs {
 // What a screen did, stage by stage.
 struct ScreenReport {
   std::size_t particles = 0;
+  int threads = 0;                     // the thread count used
   std::size_t size_classes = 0;        // cell lists built (one per class of bounding radius)
   std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
   std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve

@@ -1,49 +1,69 @@
-// `pwcontact demo`: the main job on an embedded default. Random pairs go
-// through the batch path; the scalar reference path then solves the same
-// pairs, which gives both the speed-up and the accuracy of the batch path.
+// `pwcontact demo`: the main job on an embedded default. A scene of random
+// spheroids in a periodic box is generated and screened for overlapping
+// pairs; the summary gives every stage's counts and time.
+#include <omp.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <limits>
+#include <random>
 
-#include "cli/solve.hpp"
+#include "cli/screen_summary.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
-#include "pwcontact/families.hpp"
+#include "pwcontact/ellipsoid.hpp"
 
 namespace pwcontact::cli {
 namespace {
 
-constexpr std::size_t default_pairs = 2'000'000;
+constexpr std::size_t default_ellipsoids = 1'000'000;
 constexpr std::uint64_t default_seed = 1;
 
 struct DemoOptions {
-  SolverOptions solver;
-  std::size_t pairs = default_pairs;
+  std::size_t ellipsoids = default_ellipsoids;
   std::uint64_t seed = default_seed;
+  double packing = 0.3;     // volume of the spheroids over the box's
+  double max_aspect = 3;    // aspect ratios log-uniform in [1 / max, max]
+  double cutoff = 1;
+  int threads = 0;
 };
 
 OptionParser demo_parser(DemoOptions& options) {
-  const RandomFamily family;
-  char description[512];
-  std::snprintf(description, sizeof description,
-                "Generates random pairs of ellipsoids (semi-axes uniform in [%g, %g], random "
-                "orientations, centre distance uniform in [0, %g]), solves them with the "
-                "batch path and prints its throughput; then solves them with the scalar "
-                "reference path and prints its throughput, the speed-up, and the accuracy of "
-                "the batch path against it (relative error of mu^2: max, 99.9th percentile, "
-                "median). With --precision float both paths see the same float-rounded pairs "
-                "(the batch path then reads them as float).",
-                family.min_semi_axis, family.max_semi_axis, family.max_distance);
-  OptionParser parser("demo", description);
-  parser.add_value({"--pairs"}, "N", std::to_string(default_pairs), "number of random pairs",
+  OptionParser parser(
+      "demo",
+      "Generates a scene of random spheroids in a periodic cubic box (centres uniform, "
+      "orientations uniform, aspect ratios log-uniform in [1/A, A], each with the volume "
+      "of a sphere of radius 0.5, the box sized for the packing fraction) and screens it "
+      "for the pairs with mu < cutoff (overlapping pairs with the default cutoff 1), as "
+      "'pwcontact screen' would, then prints the summary: the scene, each stage's counts "
+      "and time, the rates. On a terminal a progress bar shows the stages that take "
+      "longer than a second. No input is needed; the same seed gives the same scene on "
+      "every platform.");
+  parser.add_value({"--n"}, "N", std::to_string(default_ellipsoids), "number of spheroids",
                    [&options](std::string_view value) {
-                     options.pairs = std::size_t(parse_integer(value, 1, std::int64_t(1) << 40));
+                     options.ellipsoids = std::size_t(parse_integer(value, 1, (std::int64_t(1) << 31) - 1));
                    });
-  parser.add_value({"--seed"}, "S", std::to_string(default_seed),
-                   "seed of the random pairs (the same pairs on every platform)",
+  parser.add_value({"--seed"}, "S", std::to_string(default_seed), "seed of the scene",
                    [&options](std::string_view value) { options.seed = parse_unsigned(value); });
-  add_solver_options(parser, options.solver);
+  parser.add_value({"--packing"}, "PHI", "0.3",
+                   "packing fraction: total spheroid volume over box volume, in (0, 1)",
+                   [&options](std::string_view value) {
+                     options.packing = parse_positive_number(value);
+                     if (!(options.packing < 1)) throw std::invalid_argument("must be below 1");
+                   });
+  parser.add_value({"--max-aspect"}, "A", "3",
+                   "largest aspect ratio (polar over equatorial radius, and its inverse), >= 1",
+                   [&options](std::string_view value) {
+                     options.max_aspect = parse_positive_number(value);
+                     if (!(options.max_aspect >= 1)) throw std::invalid_argument("must be >= 1");
+                   });
+  parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
+                   [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
+  parser.add_value(
+      {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
+      "OpenMP threads, 0 to 1024; the pairs do not depend on it",
+      [&options](std::string_view value) { options.threads = int(parse_integer(value, 0, 1024)); });
   return parser;
 }
 
@@ -52,63 +72,68 @@ std::string demo_options_help() {
   return demo_parser(options).help();
 }
 
-// Relative error of mu^2 over the pairs both paths answer as valid.
-struct ErrorStatistics {
-  std::size_t compared = 0;
-  std::size_t validity_differs = 0;  // valid by one path, invalid by the other
-  double max = 0, p999 = 0, median = 0;
+// A progress bar on standard error, shown only on a terminal and only once a
+// stage has taken more than a second.
+class ProgressBar {
+ public:
+  explicit ProgressBar(const char* stage) : stage_(stage), shown_(isatty(STDERR_FILENO) == 1) {}
+  ~ProgressBar() {
+    if (drawn_) std::fputs("\r\033[K", stderr);
+  }
+  void update(double fraction) {
+    if (!shown_ || clock_.seconds() < 1) return;
+    constexpr int width = 40;
+    const int filled = int(std::clamp(fraction, 0.0, 1.0) * width);
+    std::fprintf(stderr, "\r%-28s [%.*s%*s] %3d %%", stage_, filled,
+                 "########################################", width - filled, "",
+                 int(fraction * 100));
+    std::fflush(stderr);
+    drawn_ = true;
+  }
+
+ private:
+  const char* stage_;
+  bool shown_, drawn_ = false;
+  Stopwatch clock_;
 };
 
-template <class T>
-ErrorStatistics accuracy_against(const Solution<T>& batch, const Solution<double>& reference) {
-  ErrorStatistics accuracy;
-  std::vector<double> errors;
-  errors.reserve(batch.mu2.size());
-  for (std::size_t i = 0; i < batch.mu2.size(); ++i) {
-    const bool valid = is_valid(batch.status[i]);
-    if (valid != is_valid(reference.status[i])) ++accuracy.validity_differs;
-    if (!valid || !is_valid(reference.status[i])) continue;
-    const double exact = reference.mu2[i], value = batch.mu2[i];
-    errors.push_back(exact != 0   ? std::abs(value - exact) / exact
-                     : value == 0 ? 0
-                                  : std::numeric_limits<double>::infinity());
+// The scene: spheroids of the volume of a sphere of radius 0.5. Each block of
+// particles draws from its own generator seeded by (seed, block), so the
+// scene does not depend on the thread count.
+ParticleStore make_scene(const DemoOptions& options, double box, int threads) {
+  constexpr std::size_t block = 4096;
+  const std::size_t n = options.ellipsoids;
+  const std::size_t blocks = (n + block - 1) / block;
+  ParticleStore particles;
+  particles.resize(n);
+  ProgressBar bar("generating the scene");
+  std::size_t done = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::mt19937_64 engine(options.seed * 0x9E3779B97F4A7C15ull + b);
+    std::uniform_real_distribution<double> unit(0, 1);
+    std::normal_distribution<double> normal(0, 1);
+    const double log_aspect = std::log(options.max_aspect);
+    for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) {
+      const double aspect = std::exp(log_aspect * (2 * unit(engine) - 1));
+      const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
+      std::array<double, 4> q;
+      for (double& c : q) c = normal(engine);
+      const std::array<double, 3> centre = {box * unit(engine), box * unit(engine),
+                                            box * unit(engine)};
+      particles.set(i, centre,
+                    quadratic_form_from_quaternion({equatorial, equatorial, equatorial * aspect}, q));
+    }
+    if (omp_get_thread_num() == 0) {
+      std::size_t now;
+#pragma omp atomic read
+      now = done;
+      bar.update(double(now) / double(blocks));
+    }
+#pragma omp atomic
+    ++done;
   }
-  accuracy.compared = errors.size();
-  if (errors.empty()) return accuracy;
-  // Nearest-rank quantiles.
-  auto quantile = [&errors](double q) {
-    const std::size_t rank = std::size_t(std::ceil(q * double(errors.size())));
-    const auto nth = errors.begin() + std::ptrdiff_t(std::max<std::size_t>(rank, 1) - 1);
-    std::nth_element(errors.begin(), nth, errors.end());
-    return *nth;
-  };
-  accuracy.max = *std::max_element(errors.begin(), errors.end());
-  accuracy.p999 = quantile(0.999);
-  accuracy.median = quantile(0.5);
-  return accuracy;
-}
-
-template <class T>
-void print_report(const DemoOptions& options, const PairBatch<T>& batch_pairs,
-                  const PairBatch<double>& reference_pairs, double generate_seconds) {
-  const Solution<T> batch = solve_batch(batch_pairs, Request{}, options.solver);
-  const Solution<double> reference =
-      solve_reference(reference_pairs, Request{}, options.solver.threads);
-  const ErrorStatistics accuracy = accuracy_against(batch, reference);
-  std::printf("pwcontact demo: %zu random pairs, seed %llu (generated in %s)\n\n",
-              batch.report.pairs, static_cast<unsigned long long>(options.seed),
-              describe_seconds(generate_seconds).c_str());
-  std::printf("%s\n%s\n", batch.describe().c_str(), reference.describe().c_str());
-  if (batch.seconds > 0)
-    std::printf("speed-up of the batch path over the reference path: %.1fx\n\n",
-                reference.seconds / batch.seconds);
-  std::printf(
-      "accuracy of the batch path: relative error of mu^2 against the reference path\n"
-      "  max %.3g, p99.9 %.3g, median %.3g (%zu pairs compared)\n",
-      accuracy.max, accuracy.p999, accuracy.median, accuracy.compared);
-  if (accuracy.validity_differs != 0)
-    std::printf("  %zu pairs valid by one path and invalid by the other\n",
-                accuracy.validity_differs);
+  return particles;
 }
 
 ExitStatus run_demo(const Arguments& arguments) {
@@ -118,28 +143,44 @@ ExitStatus run_demo(const Arguments& arguments) {
     std::fputs(full_help(demo_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
-  check_solver_options(parser, options.solver);
-  options.solver.isa = resolve_instruction_set(options.solver.isa);
+  const int threads = resolve_thread_count(options.threads);
+  const double volume = 4.0 / 3.0 * M_PI * 0.125;
+  const double box = std::cbrt(double(options.ellipsoids) * volume / options.packing);
 
   const Stopwatch generating;
-  PairBatch<double> pairs = random_pairs(options.pairs, options.seed);
+  const ParticleStore particles = make_scene(options, box, threads);
   const double generate_seconds = generating.seconds();
-  if (options.solver.precision == Precision::single_precision) {
-    // The reference solves the float-rounded pairs too, so that the
-    // comparison measures the solve, not the rounding of its input.
-    const PairBatch<float> single = convert_pairs<float>(pairs);
-    pairs = convert_pairs<double>(single);
-    print_report(options, single, pairs, generate_seconds);
-  } else {
-    print_report(options, pairs, pairs, generate_seconds);
+  std::printf("pwcontact demo: %zu spheroids (aspect ratios 1/%g to %g, packing fraction %g), "
+              "periodic box %.4g, seed %llu (generated in %s)\n",
+              particles.size(), options.max_aspect, options.max_aspect, options.packing, box,
+              static_cast<unsigned long long>(options.seed),
+              describe_seconds(generate_seconds).c_str());
+  std::fflush(stdout);
+
+  ScreenOptions screen_options;
+  screen_options.cutoff = options.cutoff;
+  screen_options.threads = threads;
+  ScreenedPairs pairs;
+  ScreenReport report;
+  {
+    ProgressBar bar("screening: candidates");
+    screen_options.progress = [&bar](double fraction) { bar.update(fraction); };
+    const Box periodic = Box::periodic_box(box, box, box);
+    try {
+      report = screen_pairs(particles, periodic, screen_options, pairs);
+    } catch (const std::invalid_argument& e) {
+      throw CommandError(ExitStatus::usage_error, e.what());
+    }
   }
+  std::fputs(describe_screen(report, Box::periodic_box(box, box, box), options.cutoff).c_str(),
+             stdout);
   return ExitStatus::success;
 }
 
 }  // namespace
 
-const Subcommand demo_subcommand = {"demo",
-                                    "random pairs through the batch path: throughput and accuracy",
-                                    demo_options_help, run_demo};
+const Subcommand demo_subcommand = {
+    "demo", "the main job on an embedded default: a scene of 1M spheroids screened for overlaps",
+    demo_options_help, run_demo};
 
 }  // namespace pwcontact::cli

@@ -16,7 +16,8 @@
 namespace pwcontact::cli {
 namespace {
 
-const Subcommand* const subcommands[] = {&contact_subcommand, &demo_subcommand};
+const Subcommand* const subcommands[] = {&demo_subcommand, &screen_subcommand, &contact_subcommand,
+                                         &pairs_subcommand};
 
 const Subcommand* find_subcommand(std::string_view name) {
   for (const Subcommand* subcommand : subcommands)

@@ -126,8 +126,9 @@ std::vector<Piece> split_into_pieces(std::string_view text, std::size_t count) {
 // numbering lines across blocks.
 class ColumnsParser {
  public:
-  ColumnsParser(const std::string& source, std::size_t column_count, int threads)
-      : source_(source), threads_(threads) {
+  ColumnsParser(const std::string& source, std::size_t column_count, int threads,
+                bool line_numbers)
+      : source_(source), threads_(threads), line_numbers_(line_numbers) {
     table_.columns.resize(column_count);
   }
 
@@ -137,6 +138,7 @@ class ColumnsParser {
  private:
   const std::string& source_;
   int threads_;
+  bool line_numbers_;
   std::size_t lines_before_ = 0;  // lines of the blocks parsed so far
   NumberColumns table_;
 };
@@ -170,6 +172,7 @@ void ColumnsParser::parse(std::string_view lines) {
   }
   lines_before_ = first_line - 1;
   for (std::vector<double>& column : table_.columns) column.resize(records);
+  if (line_numbers_) table_.line.resize(records);
 
   // Second pass: parse each piece straight into its rows of the columns.
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads_)
@@ -184,6 +187,7 @@ void ColumnsParser::parse(std::string_view lines) {
           piece.error = std::move(*error);
         } else {
           for (std::size_t k = 0; k < column_count; ++k) table_.columns[k][record] = row[k];
+          if (line_numbers_) table_.line[record] = line;
           ++record;
         }
       }
@@ -264,8 +268,9 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
   if (filled > 0) on_lines(std::string_view(buffer.data(), filled));
 }
 
-NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads) {
-  ColumnsParser parser(input.name(), column_count, threads);
+NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads,
+                                  bool line_numbers) {
+  ColumnsParser parser(input.name(), column_count, threads, line_numbers);
   input.read_lines([&parser](std::string_view lines) { parser.parse(lines); });
   return parser.take();
 }

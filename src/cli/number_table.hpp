@@ -42,6 +42,7 @@ class TextInput {
 // Column k holds the k-th number of every record, records in input order.
 struct NumberColumns {
   std::vector<std::vector<double>> columns;
+  std::vector<std::size_t> line;  // 1-based line of every record, when asked for
   std::size_t records() const { return columns.empty() ? 0 : columns.front().size(); }
 };
 
@@ -55,6 +56,9 @@ struct NumberColumns {
 // Throws CommandError(usage_error) for the first malformed line, as
 // "<input name>:<line>: <what is wrong>", and CommandError(io_error) when
 // reading fails.
-NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads);
+// With line_numbers, NumberColumns::line gives each record's line (for
+// messages about a record that is well formed but not acceptable).
+NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads,
+                                  bool line_numbers = false);
 
 }  // namespace pwcontact::cli

@@ -30,8 +30,27 @@ void ParticleStore::reserve(std::size_t n) {
   inscribed_.reserve(n);
 }
 
+void ParticleStore::resize(std::size_t n) {
+  for (auto& v : centre_) v.resize(n);
+  for (auto& v : q_) v.resize(n);
+  bounding_.resize(n);
+  inscribed_.resize(n);
+}
+
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
-  const std::string which = "ParticleStore: particle " + std::to_string(size());
+  const std::size_t i = size();
+  resize(i + 1);
+  try {
+    set(i, centre, q);
+  } catch (...) {
+    resize(i);
+    throw;
+  }
+}
+
+void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
+                        const std::array<double, 6>& q) {
+  const std::string which = "ParticleStore: particle " + std::to_string(i);
   for (double c : centre)
     if (!std::isfinite(c)) throw std::invalid_argument(which + ": centre is not finite");
   for (double v : q)
@@ -49,10 +68,10 @@ void ParticleStore::add(const std::array<double, 3>& centre, const std::array<do
     throw std::invalid_argument(which + ": Q is not positive definite (smallest eigenvalue " +
                                 std::to_string(smallest) + ")");
   const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
-  for (int k = 0; k < 3; ++k) centre_[k].push_back(centre[k]);
-  for (int k = 0; k < 6; ++k) q_[k].push_back(q[k]);
-  bounding_.push_back(std::sqrt(largest + slack) * up);
-  inscribed_.push_back(std::sqrt(smallest - slack) / up);
+  for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
+  for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
+  bounding_[i] = std::sqrt(largest + slack) * up;
+  inscribed_[i] = std::sqrt(smallest - slack) / up;
 }
 
 void ParticleStore::add_axes(const std::array<double, 3>& centre,

@@ -62,6 +62,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   report.particles = particles.size();
   out = {};
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  report.threads = threads;
   const double cutoff = options.cutoff;
 
   double t0 = omp_get_wtime();
@@ -73,6 +74,10 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   // Candidates and prefilters: each class's members in cell order (the
   // neighbour cells of consecutive members are the same, and in cache),
   // shared among the threads.
+  const std::size_t n = particles.size();
+  std::vector<std::size_t> done_before(lists.grids.size() + 1, 0);  // members of earlier classes
+  for (std::size_t g = 0; g < lists.grids.size(); ++g)
+    done_before[g + 1] = done_before[g] + lists.grids[g].members.size();
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
 #pragma omp parallel num_threads(threads)
   {
@@ -81,6 +86,8 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
       const screen::ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
       for (std::size_t at = 0; at < home.members.size(); ++at) {
+        if (options.progress && omp_get_thread_num() == 0 && at % 16384 == 0)
+          options.progress((double(done_before[own]) + double(at)) / double(n));
         const std::uint32_t i = home.members[at];
         // The cell search takes the wrapped position; r12 the given centres.
         const std::array<double, 3> c = {home.position[0][at], home.position[1][at],
@@ -130,6 +137,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
       }
     }
   }
+  if (options.progress) options.progress(1);
   std::size_t undecided = 0, found_in = 0;
   for (const ThreadPairs& t : per_thread) {
     report.candidate_pairs += t.candidates;

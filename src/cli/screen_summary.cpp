@@ -1,0 +1,57 @@
+#include "cli/screen_summary.hpp"
+
+#include <cstdio>
+
+#include "cli/text_output.hpp"
+
+namespace pwcontact::cli {
+namespace {
+
+// "1.23 M/s": a count per second, or "n/a" when the time was too short.
+std::string per_second(std::size_t count, double seconds) {
+  char text[64];
+  if (!(seconds > 0)) return "n/a";
+  const double rate = double(count) / seconds;
+  if (rate >= 1e6)
+    std::snprintf(text, sizeof text, "%.3g M/s", rate / 1e6);
+  else if (rate >= 1e3)
+    std::snprintf(text, sizeof text, "%.3g k/s", rate / 1e3);
+  else
+    std::snprintf(text, sizeof text, "%.3g /s", rate);
+  return text;
+}
+
+}  // namespace
+
+std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff) {
+  char text[2048];
+  char where[128];
+  if (box.periodic)
+    std::snprintf(where, sizeof where, "periodic box %g x %g x %g", box.length[0], box.length[1],
+                  box.length[2]);
+  else
+    std::snprintf(where, sizeof where, "open boundaries");
+  std::snprintf(
+      text, sizeof text,
+      "screen: %zu ellipsoids, %s, cutoff %g, threads %d\n"
+      "  cell lists: %zu size classes\n"
+      "  candidate pairs %zu: %zu apart by the bounding spheres, %zu overlapping by the "
+      "inscribed spheres, %zu solved by the batch path (%s, %s, mean evaluations %.2f, "
+      "fallbacks %zu, invalid %zu)\n"
+      "  found %zu pairs with mu < %g\n"
+      "  time: cells %s, candidates and prefilters %s, compaction %s, solve %s, sorting %s; "
+      "total %s\n"
+      "  rates: %s ellipsoids, %s candidate pairs\n",
+      r.particles, where, cutoff, r.threads, r.size_classes,
+      r.candidate_pairs, r.decided_out, r.decided_in, r.solved,
+      r.solved ? precision_name(r.batch.precision) : "-", r.solved ? isa_name(r.batch.isa) : "-",
+      r.batch.mean_evaluations, r.batch.fallbacks, r.invalid, r.found, cutoff,
+      describe_seconds(r.seconds_cells).c_str(), describe_seconds(r.seconds_candidates).c_str(),
+      describe_seconds(r.seconds_compaction).c_str(), describe_seconds(r.seconds_solve).c_str(),
+      describe_seconds(r.seconds_output).c_str(), describe_seconds(r.seconds_total()).c_str(),
+      per_second(r.particles, r.seconds_total()).c_str(),
+      per_second(r.candidate_pairs, r.seconds_total()).c_str());
+  return text;
+}
+
+}  // namespace pwcontact::cli
