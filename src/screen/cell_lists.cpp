@@ -128,6 +128,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   for (ClassGrid& grid : lists.grids) {
     const std::size_t m = grid.members.size();
     for (auto& v : grid.position) v.resize(m);
+    for (auto& v : grid.q) v.resize(m);
     for (auto& v : grid.image) v.assign(m, 0);
     grid.bounding.resize(m);
     grid.inscribed.resize(m);
@@ -139,6 +140,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
         grid.position[k][at] = x;
         if (box.periodic) grid.image[k][at] = std::int32_t(std::floor(x / box.length[k]));
       }
+      for (int k = 0; k < 6; ++k) grid.q[k][at] = particles.q(k)[i];
       grid.bounding[at] = bounding[i];
       grid.inscribed[at] = particles.inscribed_radius()[i];
     }

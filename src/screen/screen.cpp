@@ -14,21 +14,85 @@
 namespace pwcontact {
 namespace {
 
-// A pair the prefilters left: its indices and r12 = c_j - c_i (minimum image).
+// A pair the prefilters left: its indices i < j, r12 = c_j - c_i (minimum
+// image), and where the two forms are in the cell-ordered copies.
 struct Undecided {
   std::uint32_t i, j;
   double r[3];
+  const double* const* q1;  // the grid's q arrays, and the member's place in them
+  const double* const* q2;
+  std::uint32_t at1, at2;
 };
 
-// What one thread's share of the particles produced.
+// What one thread's share of the particles produced, and its buffers: the
+// pairs the prefilters leave are solved a chunk at a time, while they are in
+// cache, rather than gathered for the whole scene first (which would build a
+// batch of 120 bytes per pair in memory).
 struct ThreadPairs {
-  std::vector<Undecided> undecided;
-  std::vector<std::uint64_t> found;  // decided in by the inscribed spheres: i << 32 | j
-  std::size_t candidates = 0, out = 0;
+  std::vector<Undecided> undecided;  // waiting for the next chunk's solve
+  std::vector<std::uint64_t> found;  // i << 32 | j
+  std::vector<double> found_mu2;     // with_mu2
+  std::size_t candidates = 0, out = 0, in = 0, solved = 0, invalid = 0, fallbacks = 0;
+  double evaluations = 0;  // summed over the solved pairs
+  double seconds_compaction = 0, seconds_solve = 0;
+  BatchReport last;  // of the last chunk solved (settings as resolved)
+  PairBatch<double> batch;
+  std::vector<Status> status;
+  std::vector<std::uint8_t> overlap;
+  std::vector<double> mu2;
 };
+
+// Pairs solved per call of the batch path: enough to amortise a call, few
+// enough that the chunk stays in cache between compaction and solve.
+constexpr std::size_t solve_chunk = 8192;
 
 std::uint64_t pair_key(std::uint32_t i, std::uint32_t j) {
   return (std::uint64_t(i) << 32) | j;
+}
+
+// Compacts the waiting pairs into the thread's batch and solves them (one
+// thread: the screen's threads are already busy), keeping those found.
+void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
+  const std::size_t n = t.undecided.size();
+  if (n == 0) return;
+  const double start = omp_get_wtime();
+  t.batch.resize(n);
+  for (std::size_t at = 0; at < n; ++at) {
+    const Undecided& u = t.undecided[at];
+    for (int k = 0; k < 3; ++k) t.batch.r12(k)[at] = u.r[k];
+    for (int k = 0; k < 6; ++k) {
+      t.batch.q1(k)[at] = u.q1[k][u.at1];
+      t.batch.q2(k)[at] = u.q2[k][u.at2];
+    }
+  }
+  t.status.resize(n);
+  const double compacted = omp_get_wtime();
+  BatchOptions batch_options = options.batch;
+  batch_options.threads = 1;
+  const double cutoff2 = options.cutoff * options.cutoff;
+  if (options.with_mu2) {
+    t.mu2.resize(n);
+    t.last = contact_function_batch(t.batch.view(), {t.mu2.data(), nullptr, t.status.data()},
+                                    batch_options);
+    for (std::size_t at = 0; at < n; ++at)
+      if (is_valid(t.status[at]) && t.mu2[at] < cutoff2) {
+        t.found.push_back(pair_key(t.undecided[at].i, t.undecided[at].j));
+        t.found_mu2.push_back(t.mu2[at]);
+      }
+  } else {
+    t.overlap.resize(n);
+    t.last = overlap_batch(t.batch.view(), {t.overlap.data(), t.status.data()}, batch_options,
+                           options.cutoff);
+    for (std::size_t at = 0; at < n; ++at)
+      if (t.overlap[at]) t.found.push_back(pair_key(t.undecided[at].i, t.undecided[at].j));
+  }
+  t.solved += n;
+  t.invalid += t.last.invalid;
+  t.fallbacks += t.last.fallbacks;
+  t.evaluations += t.last.mean_evaluations * double(n);
+  t.undecided.clear();
+  t.seconds_compaction += compacted - start;
+  t.seconds_solve += omp_get_wtime() - compacted;
 }
 
 void check(const ParticleStore& particles, const Box& box, const ScreenOptions& options) {
@@ -79,11 +143,19 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   for (std::size_t g = 0; g < lists.grids.size(); ++g)
     done_before[g + 1] = done_before[g] + lists.grids[g].members.size();
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+  // Each grid's six q arrays, as pointers the undecided pairs refer to.
+  std::vector<std::array<const double*, 6>> grid_q_storage(lists.grids.size());
+  std::vector<const double* const*> grid_q(lists.grids.size());
+  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
+    for (int k = 0; k < 6; ++k) grid_q_storage[g][std::size_t(k)] = lists.grids[g].q[k].data();
+    grid_q[g] = grid_q_storage[g].data();
+  }
 #pragma omp parallel num_threads(threads)
   {
     ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
     for (std::size_t own = 0; own < lists.grids.size(); ++own) {
       const screen::ClassGrid& home = lists.grids[own];
+      const double* const* home_q = grid_q[own];
 #pragma omp for schedule(dynamic, 1024)
       for (std::size_t at = 0; at < home.members.size(); ++at) {
         if (options.progress && omp_get_thread_num() == 0 && at % 16384 == 0)
@@ -126,82 +198,64 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
                   const double inner = cutoff * (inscribed_i + grid.inscribed[m]);
                   if (!options.with_mu2 && rr < inner * inner) {
                     mine.found.push_back(pair_key(a, b));
+                    ++mine.in;
                     continue;
                   }
                   // r12 from the lower index to the higher: the pair as (a, b).
-                  const double sign = a == i ? 1 : -1;
-                  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]}});
+                  const bool i_first = a == i;
+                  const double sign = i_first ? 1 : -1;
+                  const double* const* q_i = home_q;
+                  const double* const* q_j = grid_q[g];
+                  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]},
+                                            i_first ? q_i : q_j, i_first ? q_j : q_i,
+                                            std::uint32_t(i_first ? at : m),
+                                            std::uint32_t(i_first ? m : at)});
+                  if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
                 }
               });
         }
       }
     }
+    solve_waiting(mine, options);
   }
   if (options.progress) options.progress(1);
-  std::size_t undecided = 0, found_in = 0;
+  // Compaction and solve ran inside the search, chunk by chunk: their times
+  // are the threads' summed times shared out over the threads, and the
+  // search's time what remains of the stage.
+  double compaction = 0, solve = 0, evaluations = 0;
   for (const ThreadPairs& t : per_thread) {
     report.candidate_pairs += t.candidates;
     report.decided_out += t.out;
-    undecided += t.undecided.size();
-    found_in += t.found.size();
-  }
-  report.decided_in = found_in;
-  report.solved = undecided;
-  double t2 = omp_get_wtime();
-  report.seconds_candidates = t2 - t1;
-
-  // Compaction: the undecided pairs as a SoA batch, in thread order.
-  PairBatch<double> batch(undecided);
-  std::vector<std::uint64_t> keys(undecided);
-  {
-    std::vector<std::size_t> first(per_thread.size() + 1, 0);
-    for (std::size_t t = 0; t < per_thread.size(); ++t)
-      first[t + 1] = first[t] + per_thread[t].undecided.size();
-#pragma omp parallel for num_threads(threads) schedule(static, 1)
-    for (std::size_t t = 0; t < per_thread.size(); ++t) {
-      std::size_t at = first[t];
-      for (const Undecided& u : per_thread[t].undecided) {
-        keys[at] = pair_key(u.i, u.j);
-        for (int k = 0; k < 3; ++k) batch.r12(k)[at] = u.r[k];
-        for (int k = 0; k < 6; ++k) {
-          batch.q1(k)[at] = particles.q(k)[u.i];
-          batch.q2(k)[at] = particles.q(k)[u.j];
-        }
-        ++at;
-      }
-      std::vector<Undecided>().swap(per_thread[t].undecided);
+    report.decided_in += t.in;
+    report.solved += t.solved;
+    report.invalid += t.invalid;
+    report.batch.fallbacks += t.fallbacks;
+    evaluations += t.evaluations;
+    compaction += t.seconds_compaction;
+    solve += t.seconds_solve;
+    if (t.solved) {
+      report.batch.isa = t.last.isa;
+      report.batch.precision = t.last.precision;
+      report.batch.formulation = t.last.formulation;
+      report.batch.iterations = t.last.iterations;
     }
   }
-  double t3 = omp_get_wtime();
-  report.seconds_compaction = t3 - t2;
-
-  // The solve.
-  BatchOptions batch_options = options.batch;
-  batch_options.threads = threads;
-  std::vector<Status> status(undecided);
-  std::vector<std::uint8_t> overlap;
-  std::vector<double> mu2;
-  if (undecided == 0) {
-    report.batch.pairs = 0;
-  } else if (options.with_mu2) {
-    mu2.resize(undecided);
-    report.batch = contact_function_batch(batch.view(), {mu2.data(), nullptr, status.data()},
-                                          batch_options);
-  } else {
-    overlap.resize(undecided);
-    report.batch = overlap_batch(batch.view(), {overlap.data(), status.data()}, batch_options,
-                                 cutoff);
-  }
-  report.invalid = report.batch.invalid;
-  double t4 = omp_get_wtime();
-  report.seconds_solve = t4 - t3;
+  report.batch.pairs = report.solved;
+  report.batch.invalid = report.invalid;
+  report.batch.threads = threads;
+  report.batch.mean_evaluations = report.solved ? evaluations / double(report.solved) : 0;
+  double t2 = omp_get_wtime();
+  report.seconds_compaction = compaction / threads;
+  report.seconds_solve = solve / threads;
+  report.seconds_candidates =
+      std::max(0.0, (t2 - t1) - report.seconds_compaction - report.seconds_solve);
+  const double t4 = t2;
 
   // The pairs found, sorted by (i, j).
-  const double cutoff2 = cutoff * cutoff;
   if (options.with_mu2) {
     std::vector<std::pair<std::uint64_t, double>> found;
-    for (std::size_t k = 0; k < undecided; ++k)
-      if (is_valid(status[k]) && mu2[k] < cutoff2) found.push_back({keys[k], mu2[k]});
+    for (const ThreadPairs& t : per_thread)
+      for (std::size_t k = 0; k < t.found.size(); ++k) found.push_back({t.found[k], t.found_mu2[k]});
     std::sort(found.begin(), found.end());
     out.i.resize(found.size());
     out.j.resize(found.size());
@@ -212,11 +266,14 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
       out.mu2[k] = found[k].second;
     }
   } else {
+    std::size_t total = 0;
+    for (const ThreadPairs& t : per_thread) total += t.found.size();
     std::vector<std::uint64_t> found;
-    found.reserve(found_in + undecided / 2);
-    for (const ThreadPairs& t : per_thread) found.insert(found.end(), t.found.begin(), t.found.end());
-    for (std::size_t k = 0; k < undecided; ++k)
-      if (overlap[k]) found.push_back(keys[k]);
+    found.reserve(total);
+    for (ThreadPairs& t : per_thread) {
+      found.insert(found.end(), t.found.begin(), t.found.end());
+      std::vector<std::uint64_t>().swap(t.found);
+    }
     std::sort(found.begin(), found.end());
     out.i.resize(found.size());
     out.j.resize(found.size());
