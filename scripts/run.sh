@@ -6,6 +6,7 @@
 #   bash scripts/run.sh test          the whole test suite (Release build)
 #   bash scripts/run.sh sanitize      the whole test suite under ASan + UBSan
 #   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
+#   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
 #   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
 #                                     Markdown and a gnuplot plot), labelled with the
 #                                     commit measured; to refresh the README's figures:
@@ -17,8 +18,8 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 job="${1:-}"
 [ $# -gt 0 ] && shift
 case "$job" in
-  demo|test|sanitize|bench|trade) ;;
-  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench|trade [args...]" >&2; exit 2 ;;
+  demo|test|sanitize|bench|screen-bench|trade) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench|screen-bench|trade [args...]" >&2; exit 2 ;;
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
@@ -55,6 +56,10 @@ case "$job" in
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_bench
     exec build/release/bench/pwcontact_bench "$@" ;;
+  screen-bench)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target pwcontact_screen
+    exec build/release/bench/pwcontact_screen "$@" ;;
   trade)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_trade

@@ -1,5 +1,7 @@
 #include "pwcontact/families.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -81,6 +83,40 @@ PairBatch<double> pw85_family() {
           pairs.push_back(r, q1.data(), q2.data());
         }
   return pairs;
+}
+
+SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, double max_aspect,
+                             int threads, const std::function<void(double fraction)>& progress) {
+  constexpr std::size_t block = 4096;
+  const double volume = 4.0 / 3.0 * 3.14159265358979323846 * 0.125;
+  const double length = std::cbrt(double(n) * volume / packing);
+  SpheroidScene scene{{}, Box::periodic_box(length, length, length)};
+  scene.particles.resize(n);
+  const std::size_t blocks = (n + block - 1) / block;
+  const double log_aspect = std::log(max_aspect);
+  std::size_t done = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads > 0 ? threads : omp_get_max_threads())
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::mt19937_64 engine(seed * 0x9E3779B97F4A7C15ull + b);
+    for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) {
+      const double aspect = std::exp(log_aspect * (2 * uniform01(engine) - 1));
+      const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
+      const std::array<double, 3> centre = {length * uniform01(engine), length * uniform01(engine),
+                                            length * uniform01(engine)};
+      scene.particles.set(i, centre,
+                          quadratic_form_from_quaternion({equatorial, equatorial, equatorial * aspect},
+                                                         random_quaternion(engine)));
+    }
+    if (progress && omp_get_thread_num() == 0) {
+      std::size_t now;
+#pragma omp atomic read
+      now = done;
+      progress(double(now) / double(blocks));
+    }
+#pragma omp atomic
+    ++done;
+  }
+  return scene;
 }
 
 PairBatch<float> to_float(const PairBatch<double>& pairs) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "pwcontact/batch.hpp"
+#include "pwcontact/screen.hpp"
 
 namespace pwcontact {
 
@@ -30,5 +31,20 @@ PairBatch<double> pw85_family();
 
 // The same pairs rounded to float.
 PairBatch<float> to_float(const PairBatch<double>& pairs);
+
+// A scene of n random spheroids in a periodic cubic box: centres uniform,
+// orientations uniform, aspect ratios (polar over equatorial radius)
+// log-uniform in [1 / max_aspect, max_aspect], each with the volume of a
+// sphere of radius 0.5, the box sized for the packing fraction (total
+// spheroid volume over box volume). Each block of particles draws from its
+// own generator seeded by (seed, block): the same scene on every platform
+// and for every thread count.
+struct SpheroidScene {
+  ParticleStore particles;
+  Box box;
+};
+SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing = 0.3,
+                             double max_aspect = 3, int threads = 0,
+                             const std::function<void(double fraction)>& progress = {});
 
 }  // namespace pwcontact

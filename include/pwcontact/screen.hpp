@@ -114,4 +114,14 @@ struct ScreenReport {
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
                           const ScreenOptions& options, ScreenedPairs& out);
 
+// Every pair (i < j) the cell lists compare for this cutoff — a superset of
+// the pairs with mu < cutoff, before any prefilter — with r12 = c_j - c_i by
+// the minimum image: visit(thread, i, j, r12) is called from the OpenMP
+// thread (0 .. threads - 1) that found the pair, in no particular order. For
+// pipelines of one's own, and to measure against. Throws as screen_pairs.
+void for_each_candidate_pair(
+    const ParticleStore& particles, const Box& box, double cutoff, int threads,
+    const std::function<void(int thread, std::uint32_t i, std::uint32_t j, const double r12[3])>&
+        visit);
+
 }  // namespace pwcontact

@@ -12,7 +12,7 @@
 #include "cli/screen_summary.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
-#include "pwcontact/ellipsoid.hpp"
+#include "pwcontact/families.hpp"
 
 namespace pwcontact::cli {
 namespace {
@@ -97,45 +97,6 @@ class ProgressBar {
   Stopwatch clock_;
 };
 
-// The scene: spheroids of the volume of a sphere of radius 0.5. Each block of
-// particles draws from its own generator seeded by (seed, block), so the
-// scene does not depend on the thread count.
-ParticleStore make_scene(const DemoOptions& options, double box, int threads) {
-  constexpr std::size_t block = 4096;
-  const std::size_t n = options.ellipsoids;
-  const std::size_t blocks = (n + block - 1) / block;
-  ParticleStore particles;
-  particles.resize(n);
-  ProgressBar bar("generating the scene");
-  std::size_t done = 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (std::size_t b = 0; b < blocks; ++b) {
-    std::mt19937_64 engine(options.seed * 0x9E3779B97F4A7C15ull + b);
-    std::uniform_real_distribution<double> unit(0, 1);
-    std::normal_distribution<double> normal(0, 1);
-    const double log_aspect = std::log(options.max_aspect);
-    for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) {
-      const double aspect = std::exp(log_aspect * (2 * unit(engine) - 1));
-      const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
-      std::array<double, 4> q;
-      for (double& c : q) c = normal(engine);
-      const std::array<double, 3> centre = {box * unit(engine), box * unit(engine),
-                                            box * unit(engine)};
-      particles.set(i, centre,
-                    quadratic_form_from_quaternion({equatorial, equatorial, equatorial * aspect}, q));
-    }
-    if (omp_get_thread_num() == 0) {
-      std::size_t now;
-#pragma omp atomic read
-      now = done;
-      bar.update(double(now) / double(blocks));
-    }
-#pragma omp atomic
-    ++done;
-  }
-  return particles;
-}
-
 ExitStatus run_demo(const Arguments& arguments) {
   DemoOptions options;
   OptionParser parser = demo_parser(options);
@@ -144,12 +105,16 @@ ExitStatus run_demo(const Arguments& arguments) {
     return ExitStatus::success;
   }
   const int threads = resolve_thread_count(options.threads);
-  const double volume = 4.0 / 3.0 * M_PI * 0.125;
-  const double box = std::cbrt(double(options.ellipsoids) * volume / options.packing);
-
   const Stopwatch generating;
-  const ParticleStore particles = make_scene(options, box, threads);
+  SpheroidScene scene;
+  {
+    ProgressBar bar("generating the scene");
+    scene = spheroid_scene(options.ellipsoids, options.seed, options.packing, options.max_aspect,
+                           threads, [&bar](double fraction) { bar.update(fraction); });
+  }
   const double generate_seconds = generating.seconds();
+  const ParticleStore& particles = scene.particles;
+  const double box = scene.box.length[0];
   std::printf("pwcontact demo: %zu spheroids (aspect ratios 1/%g to %g, packing fraction %g), "
               "periodic box %.4g, seed %llu (generated in %s)\n",
               particles.size(), options.max_aspect, options.max_aspect, options.packing, box,

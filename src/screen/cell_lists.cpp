@@ -121,9 +121,12 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   std::vector<std::vector<std::uint32_t>> next(lists.grids.size());
   for (std::size_t g = 0; g < lists.grids.size(); ++g)
     next[g].assign(lists.grids[g].cell_start.begin(), lists.grids[g].cell_start.end() - 1);
+  // cell[i] becomes particle i's place among its class's members.
   for (std::size_t i = 0; i < n; ++i) {
     const int g = lists.size_class[i];
-    lists.grids[g].members[next[g][cell[i]]++] = std::uint32_t(i);
+    const std::uint32_t at = next[g][cell[i]]++;
+    lists.grids[g].members[at] = std::uint32_t(i);
+    cell[i] = at;
   }
   for (ClassGrid& grid : lists.grids) {
     const std::size_t m = grid.members.size();
@@ -132,18 +135,21 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (auto& v : grid.image) v.assign(m, 0);
     grid.bounding.resize(m);
     grid.inscribed.resize(m);
+  }
+  // The copies in cell order, read in particle order (streaming reads,
+  // scattered writes: measured faster than gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
-    for (std::size_t at = 0; at < m; ++at) {
-      const std::uint32_t i = grid.members[at];
-      for (int k = 0; k < 3; ++k) {
-        const double x = particles.centre(k)[i];
-        grid.position[k][at] = x;
-        if (box.periodic) grid.image[k][at] = std::int32_t(std::floor(x / box.length[k]));
-      }
-      for (int k = 0; k < 6; ++k) grid.q[k][at] = particles.q(k)[i];
-      grid.bounding[at] = bounding[i];
-      grid.inscribed[at] = particles.inscribed_radius()[i];
+  for (std::size_t i = 0; i < n; ++i) {
+    ClassGrid& grid = lists.grids[lists.size_class[i]];
+    const std::size_t at = cell[i];
+    for (int k = 0; k < 3; ++k) {
+      const double x = particles.centre(k)[i];
+      grid.position[k][at] = x;
+      if (box.periodic) grid.image[k][at] = std::int32_t(std::floor(x / box.length[k]));
     }
+    for (int k = 0; k < 6; ++k) grid.q[k][at] = particles.q(k)[i];
+    grid.bounding[at] = bounding[i];
+    grid.inscribed[at] = particles.inscribed_radius()[i];
   }
   return lists;
 }

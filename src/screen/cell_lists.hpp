@@ -16,7 +16,10 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
+
+#include <omp.h>
 
 #include "pwcontact/screen.hpp"
 
@@ -106,6 +109,79 @@ void for_each_neighbour_cell(const CellLists& lists, const ClassGrid& grid,
         visit(grid.cell_start[at], grid.cell_start[at + 1], s, nearest_image);
       }
     }
+}
+
+// A candidate pair: particle i (class class_i, place at_i in its grid) and
+// j (class_j, at_j), r = c_j - c_i by the nearest image.
+struct Candidate {
+  std::uint32_t i, j, at_i, at_j;
+  std::size_t class_i, class_j;
+  double r[3];
+};
+
+// Every candidate pair once (within a class from the lower index, across
+// classes from the smaller particle): calls on_candidate(thread, candidate)
+// in the thread that finds it, then done(thread) when the thread has no more.
+// Each class's members are taken in cell order (the neighbour cells of
+// consecutive members are the same, and in cache), shared among the threads;
+// progress (may be empty) hears the fraction done now and then.
+template <class OnCandidate, class Done>
+void search_candidates(const CellLists& lists, const Box& box, int threads,
+                       const std::function<void(double)>& progress, OnCandidate&& on_candidate,
+                       Done&& done) {
+  std::size_t total = 0;
+  std::vector<std::size_t> done_before(lists.grids.size() + 1, 0);  // members of earlier classes
+  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
+    done_before[g + 1] = done_before[g] + lists.grids[g].members.size();
+    total += lists.grids[g].members.size();
+  }
+#pragma omp parallel num_threads(threads)
+  {
+    const int thread = omp_get_thread_num();
+    Candidate c;
+    for (std::size_t own = 0; own < lists.grids.size(); ++own) {
+      const ClassGrid& home = lists.grids[own];
+#pragma omp for schedule(dynamic, 1024)
+      for (std::size_t at = 0; at < home.members.size(); ++at) {
+        if (progress && thread == 0 && at % 16384 == 0)
+          progress((double(done_before[own]) + double(at)) / double(total));
+        c.i = home.members[at];
+        c.at_i = std::uint32_t(at);
+        c.class_i = own;
+        // The cell search takes the wrapped position; r the given centres
+        // plus one multiple of the box length per axis.
+        const double centre[3] = {home.position[0][at], home.position[1][at], home.position[2][at]};
+        const std::array<double, 3> p = {lists.wrapped(0, centre[0]), lists.wrapped(1, centre[1]),
+                                         lists.wrapped(2, centre[2])};
+        const std::int32_t image_i[3] = {home.image[0][at], home.image[1][at], home.image[2][at]};
+        // Classes of radii at least as large as i's (indices 0 .. own).
+        for (std::size_t g = 0; g <= own; ++g) {
+          const ClassGrid& grid = lists.grids[g];
+          c.class_j = g;
+          for_each_neighbour_cell(
+              lists, grid, p,
+              [&](std::uint32_t begin, std::uint32_t end, const int (&shift)[3],
+                  bool nearest_image) {
+                for (std::uint32_t m = begin; m < end; ++m) {
+                  c.j = grid.members[m];
+                  if (g == own && c.j <= c.i) continue;  // within a class, from the lower index
+                  c.at_j = m;
+                  for (int k = 0; k < 3; ++k) {
+                    c.r[k] = grid.position[k][m] - centre[k];
+                    const int lengths = shift[k] - (grid.image[k][m] - image_i[k]);
+                    if (lengths != 0) c.r[k] += double(lengths) * box.length[k];
+                  }
+                  if (nearest_image)
+                    for (int k = 0; k < 3; ++k)
+                      c.r[k] -= box.length[k] * std::nearbyint(c.r[k] / box.length[k]);
+                  on_candidate(thread, c);
+                }
+              });
+        }
+      }
+    }
+    done(thread);
+  }
 }
 
 }  // namespace pwcontact::screen

@@ -135,13 +135,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   double t1 = omp_get_wtime();
   report.seconds_cells = t1 - t0;
 
-  // Candidates and prefilters: each class's members in cell order (the
-  // neighbour cells of consecutive members are the same, and in cache),
-  // shared among the threads.
-  const std::size_t n = particles.size();
-  std::vector<std::size_t> done_before(lists.grids.size() + 1, 0);  // members of earlier classes
-  for (std::size_t g = 0; g < lists.grids.size(); ++g)
-    done_before[g + 1] = done_before[g] + lists.grids[g].members.size();
+  // Candidates and prefilters; the undecided pairs solved chunk by chunk.
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
   // Each grid's six q arrays, as pointers the undecided pairs refer to.
   std::vector<std::array<const double*, 6>> grid_q_storage(lists.grids.size());
@@ -150,74 +144,37 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
     for (int k = 0; k < 6; ++k) grid_q_storage[g][std::size_t(k)] = lists.grids[g].q[k].data();
     grid_q[g] = grid_q_storage[g].data();
   }
-#pragma omp parallel num_threads(threads)
-  {
-    ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
-    for (std::size_t own = 0; own < lists.grids.size(); ++own) {
-      const screen::ClassGrid& home = lists.grids[own];
-      const double* const* home_q = grid_q[own];
-#pragma omp for schedule(dynamic, 1024)
-      for (std::size_t at = 0; at < home.members.size(); ++at) {
-        if (options.progress && omp_get_thread_num() == 0 && at % 16384 == 0)
-          options.progress((double(done_before[own]) + double(at)) / double(n));
-        const std::uint32_t i = home.members[at];
-        // The cell search takes the wrapped position; r12 the given centres.
-        const std::array<double, 3> c = {home.position[0][at], home.position[1][at],
-                                         home.position[2][at]};
-        const std::array<double, 3> p = {lists.wrapped(0, c[0]), lists.wrapped(1, c[1]),
-                                         lists.wrapped(2, c[2])};
-        const std::int32_t image_i[3] = {home.image[0][at], home.image[1][at], home.image[2][at]};
-        const double bounding_i = home.bounding[at], inscribed_i = home.inscribed[at];
-        // Classes of radii at least as large as i's (indices 0 .. own).
-        for (std::size_t g = 0; g <= own; ++g) {
-          const screen::ClassGrid& grid = lists.grids[g];
-          screen::for_each_neighbour_cell(
-              lists, grid, p,
-              [&](std::uint32_t begin, std::uint32_t end, const int (&shift)[3],
-                  bool nearest_image) {
-                for (std::uint32_t m = begin; m < end; ++m) {
-                  const std::uint32_t j = grid.members[m];
-                  if (g == own && j <= i) continue;  // within a class, from the lower index
-                  ++mine.candidates;
-                  double r[3];
-                  for (int k = 0; k < 3; ++k) {
-                    r[k] = grid.position[k][m] - c[k];
-                    const int lengths = shift[k] - (grid.image[k][m] - image_i[k]);
-                    if (lengths != 0) r[k] += double(lengths) * box.length[k];
-                  }
-                  if (nearest_image)
-                    for (int k = 0; k < 3; ++k)
-                      r[k] -= box.length[k] * std::nearbyint(r[k] / box.length[k]);
-                  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                  const double reach = cutoff * (bounding_i + grid.bounding[m]);
-                  if (rr >= reach * reach) {
-                    ++mine.out;
-                    continue;
-                  }
-                  const std::uint32_t a = std::min(i, j), b = std::max(i, j);
-                  const double inner = cutoff * (inscribed_i + grid.inscribed[m]);
-                  if (!options.with_mu2 && rr < inner * inner) {
-                    mine.found.push_back(pair_key(a, b));
-                    ++mine.in;
-                    continue;
-                  }
-                  // r12 from the lower index to the higher: the pair as (a, b).
-                  const bool i_first = a == i;
-                  const double sign = i_first ? 1 : -1;
-                  const double* const* q_i = home_q;
-                  const double* const* q_j = grid_q[g];
-                  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]},
-                                            i_first ? q_i : q_j, i_first ? q_j : q_i,
-                                            std::uint32_t(i_first ? at : m),
-                                            std::uint32_t(i_first ? m : at)});
-                  if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
-                }
-              });
+  screen::search_candidates(
+      lists, box, threads, options.progress,
+      [&](int thread, const screen::Candidate& c) {
+        ThreadPairs& mine = per_thread[std::size_t(thread)];
+        ++mine.candidates;
+        const screen::ClassGrid& home = lists.grids[c.class_i];
+        const screen::ClassGrid& grid = lists.grids[c.class_j];
+        const double rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
+        const double reach = cutoff * (home.bounding[c.at_i] + grid.bounding[c.at_j]);
+        if (rr >= reach * reach) {
+          ++mine.out;
+          return;
         }
-      }
-    }
-    solve_waiting(mine, options);
-  }
+        const std::uint32_t a = std::min(c.i, c.j), b = std::max(c.i, c.j);
+        const double inner = cutoff * (home.inscribed[c.at_i] + grid.inscribed[c.at_j]);
+        if (!options.with_mu2 && rr < inner * inner) {
+          mine.found.push_back(pair_key(a, b));
+          ++mine.in;
+          return;
+        }
+        // r12 from the lower index to the higher: the pair as (a, b).
+        const bool i_first = a == c.i;
+        const double sign = i_first ? 1 : -1;
+        const double* const* q_i = grid_q[c.class_i];
+        const double* const* q_j = grid_q[c.class_j];
+        mine.undecided.push_back({a, b, {sign * c.r[0], sign * c.r[1], sign * c.r[2]},
+                                  i_first ? q_i : q_j, i_first ? q_j : q_i,
+                                  i_first ? c.at_i : c.at_j, i_first ? c.at_j : c.at_i});
+        if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
+      },
+      [&](int thread) { solve_waiting(per_thread[std::size_t(thread)], options); });
   if (options.progress) options.progress(1);
   // Compaction and solve ran inside the search, chunk by chunk: their times
   // are the threads' summed times shared out over the threads, and the
@@ -285,6 +242,29 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   report.found = out.size();
   report.seconds_output = omp_get_wtime() - t4;
   return report;
+}
+
+void for_each_candidate_pair(
+    const ParticleStore& particles, const Box& box, double cutoff, int threads,
+    const std::function<void(int thread, std::uint32_t i, std::uint32_t j, const double r12[3])>&
+        visit) {
+  ScreenOptions options;
+  options.cutoff = cutoff;
+  options.threads = threads;
+  check(particles, box, options);
+  threads = threads > 0 ? threads : omp_get_max_threads();
+  const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
+  screen::search_candidates(
+      lists, box, threads, {},
+      [&](int thread, const screen::Candidate& c) {
+        if (c.i < c.j) {
+          visit(thread, c.i, c.j, c.r);
+        } else {
+          const double r[3] = {-c.r[0], -c.r[1], -c.r[2]};
+          visit(thread, c.j, c.i, r);
+        }
+      },
+      [](int) {});
 }
 
 }  // namespace pwcontact

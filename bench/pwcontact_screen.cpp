@@ -1,0 +1,181 @@
+// pwcontact_screen: the screening pipeline on the demo's scenes (random
+// spheroids, aspect ratios 1/3 .. 3, packing fraction 0.3, periodic box),
+// timed with Google Benchmark:
+//   screen/spheroids/n:N/threads:T       screen_pairs, every stage included
+//                                        (cell lists, candidates and prefilters,
+//                                        compaction, solve, sorting)
+//   brent_pipeline/spheroids/n:N/threads:T  the same cell lists with
+//                                        brent_baseline on every candidate pair
+//                                        (no prefilter, no batch path), then the
+//                                        pairs found sorted the same way
+// then a summary of the targets from the medians of the same run: the 1M
+// scene in at most 1.0 s with 2 threads, time per particle within +-25 %
+// over 1e5, 1e6 and 4e6 particles, and the end-to-end ratio to the Brent
+// pipeline (>= 30x).
+#include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "brent_baseline.hpp"
+#include "pwcontact/pwcontact.hpp"
+
+namespace {
+
+using pwcontact::ScreenedPairs;
+using pwcontact::ScreenOptions;
+using pwcontact::ScreenReport;
+using pwcontact::SpheroidScene;
+
+constexpr std::uint64_t scene_seed = 1;
+
+const SpheroidScene& scene(std::size_t n) {
+  static std::map<std::size_t, SpheroidScene> scenes;
+  auto found = scenes.find(n);
+  if (found == scenes.end()) found = scenes.emplace(n, pwcontact::spheroid_scene(n, scene_seed)).first;
+  return found->second;
+}
+
+// Seconds of every iteration, by benchmark family name, for the summary.
+std::map<std::string, std::vector<double>>& seconds_by_name() {
+  static std::map<std::string, std::vector<double>> seconds;
+  return seconds;
+}
+
+std::string name_of(const char* path, std::size_t n, int threads) {
+  return std::string(path) + "/spheroids/n:" + std::to_string(n) + "/threads:" +
+         std::to_string(threads);
+}
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void screen_benchmark(benchmark::State& state, std::size_t n, int threads) {
+  const SpheroidScene& s = scene(n);
+  ScreenOptions options;
+  options.threads = threads;
+  ScreenedPairs pairs;
+  ScreenReport report;
+  for (auto _ : state) {
+    const double start = now();
+    report = pwcontact::screen_pairs(s.particles, s.box, options, pairs);
+    const double seconds = now() - start;
+    state.SetIterationTime(seconds);
+    seconds_by_name()[name_of("screen", n, threads)].push_back(seconds);
+  }
+  state.counters["ns_per_particle"] = benchmark::Counter(
+      double(n), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["candidates"] = double(report.candidate_pairs);
+  state.counters["solved"] = double(report.solved);
+  state.counters["found"] = double(report.found);
+  state.counters["s_cells"] = report.seconds_cells;
+  state.counters["s_candidates"] = report.seconds_candidates;
+  state.counters["s_compaction"] = report.seconds_compaction;
+  state.counters["s_solve"] = report.seconds_solve;
+  state.counters["s_sorting"] = report.seconds_output;
+}
+
+// The cell lists' candidates, each solved by brent_baseline, the pairs with
+// mu^2 < 1 kept and sorted: what the pipeline costs without the prefilters
+// and the batch path.
+void brent_pipeline_benchmark(benchmark::State& state, std::size_t n, int threads) {
+  const SpheroidScene& s = scene(n);
+  std::size_t found_count = 0, candidates = 0;
+  for (auto _ : state) {
+    const double start = now();
+    std::vector<std::vector<std::uint64_t>> found(static_cast<std::size_t>(threads));
+    std::vector<std::size_t> counted(static_cast<std::size_t>(threads), 0);
+    pwcontact::for_each_candidate_pair(
+        s.particles, s.box, 1.0, threads,
+        [&](int thread, std::uint32_t i, std::uint32_t j, const double r12[3]) {
+          double q1[6], q2[6];
+          for (int k = 0; k < 6; ++k) {
+            q1[k] = s.particles.q(k)[i];
+            q2[k] = s.particles.q(k)[j];
+          }
+          ++counted[std::size_t(thread)];
+          if (pwcontact::bench::brent_contact_function(r12, q1, q2).mu2 < 1)
+            found[std::size_t(thread)].push_back((std::uint64_t(i) << 32) | j);
+        });
+    std::vector<std::uint64_t> all;
+    for (const auto& f : found) all.insert(all.end(), f.begin(), f.end());
+    std::sort(all.begin(), all.end());
+    benchmark::DoNotOptimize(all.data());
+    const double seconds = now() - start;
+    state.SetIterationTime(seconds);
+    seconds_by_name()[name_of("brent_pipeline", n, threads)].push_back(seconds);
+    found_count = all.size();
+    candidates = 0;
+    for (std::size_t c : counted) candidates += c;
+  }
+  state.counters["candidates"] = double(candidates);
+  state.counters["found"] = double(found_count);
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
+}
+
+void print_summary() {
+  auto time_of = [](const char* path, std::size_t n, int threads) {
+    return median(seconds_by_name()[name_of(path, n, threads)]);
+  };
+  std::printf("\nTargets (medians of this run, 2 threads)\n");
+  const double demo = time_of("screen", 1000000, 2);
+  if (demo > 0)
+    std::printf("  %-8s demo scene, 1,000,000 spheroids: %.3f s (target <= 1.0 s)\n",
+                demo <= 1.0 ? "met" : "NOT MET", demo);
+  std::vector<std::pair<std::size_t, double>> per_particle;
+  for (std::size_t n : {std::size_t(100000), std::size_t(1000000), std::size_t(4000000)}) {
+    const double t = time_of("screen", n, 2);
+    if (t > 0) per_particle.push_back({n, t / double(n)});
+  }
+  if (per_particle.size() == 3) {
+    double mean = 0;
+    for (const auto& p : per_particle) mean += p.second / 3;
+    double worst = 0;
+    std::printf("  time per particle:");
+    for (const auto& p : per_particle) {
+      std::printf(" %zu: %.3f us (%+.1f %%)", p.first, p.second * 1e6, (p.second / mean - 1) * 100);
+      worst = std::max(worst, std::abs(p.second / mean - 1));
+    }
+    std::printf("\n  %-8s cost linear in N: largest deviation from the mean %.1f %% (target <= 25 %%)\n",
+                worst <= 0.25 ? "met" : "NOT MET", worst * 100);
+  }
+  const double ours = time_of("screen", 100000, 2), brent = time_of("brent_pipeline", 100000, 2);
+  if (ours > 0 && brent > 0)
+    std::printf("  %-8s end to end, 100,000 spheroids: brent pipeline %.3f s / screen %.4f s = "
+                "%.1fx (target >= 30x)\n",
+                brent / ours >= 30 ? "met" : "NOT MET", brent, ours, brent / ours);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  for (std::size_t n : {100000, 1000000, 4000000})
+    for (int threads : {1, 2})
+      benchmark::RegisterBenchmark(name_of("screen", n, threads).c_str(), screen_benchmark, n,
+                                   threads)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark(name_of("brent_pipeline", 100000, 2).c_str(),
+                               brent_pipeline_benchmark, std::size_t(100000), 2)
+      ->UseManualTime()
+      ->Iterations(1)
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RunSpecifiedBenchmarks();
+  print_summary();
+  benchmark::Shutdown();
+  return 0;
+}
