@@ -162,7 +162,9 @@ Comparison expect_same_pairs(const SceneSpec& spec, double cutoff, const std::st
   ScreenedPairs got;
   const ScreenReport report = screen(s, box, cutoff, got);
   EXPECT_EQ(report.particles, spec.particles);
-  EXPECT_EQ(report.candidate_pairs, report.decided_out + report.decided_in + report.solved) << what;
+  EXPECT_EQ(report.candidate_pairs,
+            report.decided_out + report.decided_in + report.decided_spheres + report.solved)
+      << what;
   EXPECT_EQ(report.found, got.size()) << what;
   EXPECT_EQ(report.invalid, 0u) << what;
   std::printf("[ measured ] %s: %zu size classes, %zu candidates, %zu out and %zu in by the "
@@ -221,6 +223,31 @@ TEST(Screen, NeighbourListsWithASkinMatchTheBruteForceAndReportMu2) {
   std::printf("[ measured ] neighbour list: max relative error of mu^2 %.3g\n", worst);
   EXPECT_LE(worst, 1e-13);
   compare(s, box, 1.3, got, "neighbour list, cutoff 1.3");
+}
+
+TEST(Screen, PairsOfSpheresAreDecidedInClosedFormWithoutASolve) {
+  // Polydisperse spheres (aspect 1; radii 0.2 .. 1), dense, periodic: every
+  // pair the bounding spheres leave is decided by mu = |r| / (a_i + a_j).
+  const SceneSpec spec{1000, 1, 1, 0.2, 1.0, 10.0, true, 9};
+  const ParticleStore s = make_scene(spec);
+  for (std::size_t i = 0; i < s.size(); ++i) ASSERT_GT(s.sphere_radius()[i], 0) << i;
+  const Box box = box_of(spec);
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, box, 1, got);
+  EXPECT_EQ(report.solved, 0u);
+  EXPECT_GT(report.decided_spheres, 500u);
+  const Comparison c = compare(s, box, 1, got, "spheres");
+  EXPECT_GT(c.expected, 500u);
+  // With mu^2: the closed form to a few roundings of the reference's.
+  ScreenedPairs with_mu2;
+  screen(s, box, 1.2, with_mu2, true);
+  double worst = 0;
+  for (std::size_t k = 0; k < with_mu2.size(); ++k) {
+    const double exact = reference_mu2(s, box, with_mu2.i[k], with_mu2.j[k]);
+    worst = std::max(worst, std::abs(with_mu2.mu2[k] - exact) / exact);
+  }
+  EXPECT_LE(worst, 1e-14) << "a few roundings of |r|^2 / (a_i + a_j)^2";
+  compare(s, box, 1.2, with_mu2, "spheres, cutoff 1.2");
 }
 
 TEST(Screen, ThePairsAndTheirOrderDoNotDependOnTheThreadCount) {

@@ -63,9 +63,12 @@ class ParticleStore {
   const std::vector<double>& q(int k) const { return q_[k]; }
   const std::vector<double>& bounding_radius() const { return bounding_; }
   const std::vector<double>& inscribed_radius() const { return inscribed_; }
+  // The radius of a particle that is a sphere (Q = a^2 I exactly), else 0:
+  // pairs of spheres are decided in closed form, mu = |r| / (a_i + a_j).
+  const std::vector<double>& sphere_radius() const { return sphere_; }
 
  private:
-  std::vector<double> centre_[3], q_[6], bounding_, inscribed_;
+  std::vector<double> centre_[3], q_[6], bounding_, inscribed_, sphere_;
 };
 
 struct ScreenOptions {
@@ -94,6 +97,7 @@ struct ScreenReport {
   std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
   std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
   std::size_t decided_in = 0;          // |r| < cutoff (rho_i + rho_j): found, no solve
+  std::size_t decided_spheres = 0;     // pairs of spheres left by those: closed form, no solve
   std::size_t solved = 0;              // pairs given to the batch path
   std::size_t invalid = 0;             // solved pairs with an invalid status (not found)
   std::size_t found = 0;

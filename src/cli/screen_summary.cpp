@@ -36,14 +36,14 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
       "screen: %zu ellipsoids, %s, cutoff %g, threads %d\n"
       "  cell lists: %zu size classes\n"
       "  candidate pairs %zu: %zu apart by the bounding spheres, %zu overlapping by the "
-      "inscribed spheres, %zu solved by the batch path (%s, %s, mean evaluations %.2f, "
-      "fallbacks %zu, invalid %zu)\n"
+      "inscribed spheres, %zu pairs of spheres in closed form, %zu solved by the batch path "
+      "(%s, %s, mean evaluations %.2f, fallbacks %zu, invalid %zu)\n"
       "  found %zu pairs with mu < %g\n"
       "  time: cells %s, candidates and prefilters %s, compaction %s, solve %s, sorting %s; "
       "total %s\n"
       "  rates: %s ellipsoids, %s candidate pairs\n",
       r.particles, where, cutoff, r.threads, r.size_classes,
-      r.candidate_pairs, r.decided_out, r.decided_in, r.solved,
+      r.candidate_pairs, r.decided_out, r.decided_in, r.decided_spheres, r.solved,
       r.solved ? precision_name(r.batch.precision) : "-", r.solved ? isa_name(r.batch.isa) : "-",
       r.batch.mean_evaluations, r.batch.fallbacks, r.invalid, r.found, cutoff,
       describe_seconds(r.seconds_cells).c_str(), describe_seconds(r.seconds_candidates).c_str(),

@@ -134,6 +134,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (auto& v : grid.q) v.resize(m);
     for (auto& v : grid.image) v.assign(m, 0);
     grid.bounding.resize(m);
+    grid.sphere.resize(m);
     grid.inscribed.resize(m);
   }
   // The copies in cell order, read in particle order (streaming reads,
@@ -150,6 +151,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (int k = 0; k < 6; ++k) grid.q[k][at] = particles.q(k)[i];
     grid.bounding[at] = bounding[i];
     grid.inscribed[at] = particles.inscribed_radius()[i];
+    grid.sphere[at] = particles.sphere_radius()[i];
   }
   return lists;
 }

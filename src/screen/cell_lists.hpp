@@ -39,7 +39,7 @@ struct ClassGrid {
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
   std::vector<std::uint32_t> cell_start;  // cells + 1 offsets into members
   std::vector<std::uint32_t> members;     // particle indices, by cell
-  std::vector<double> position[3], bounding, inscribed, q[6];  // by member
+  std::vector<double> position[3], bounding, inscribed, sphere, q[6];  // by member
   std::vector<std::int32_t> image[3];  // floor(x / L) per member (periodic), else 0
 };
 

@@ -28,6 +28,7 @@ void ParticleStore::reserve(std::size_t n) {
   for (auto& v : q_) v.reserve(n);
   bounding_.reserve(n);
   inscribed_.reserve(n);
+  sphere_.reserve(n);
 }
 
 void ParticleStore::resize(std::size_t n) {
@@ -35,6 +36,7 @@ void ParticleStore::resize(std::size_t n) {
   for (auto& v : q_) v.resize(n);
   bounding_.resize(n);
   inscribed_.resize(n);
+  sphere_.resize(n);
 }
 
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
@@ -72,12 +74,19 @@ void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
   for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
   bounding_[i] = std::sqrt(largest + slack) * up;
   inscribed_[i] = std::sqrt(smallest - slack) / up;
+  const bool sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
+  sphere_[i] = sphere ? std::sqrt(q[0]) : 0;
 }
 
 void ParticleStore::add_axes(const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
-  add(centre, quadratic_form_from_quaternion(semi_axes, quaternion));
+  // Equal semi-axes: a sphere whatever the rotation, stored as exactly a^2 I
+  // (the rotated form would carry rounding off the diagonal), so that pairs
+  // of spheres are recognised and decided in closed form.
+  const QuadraticForm rotated = quadratic_form_from_quaternion(semi_axes, quaternion);  // checks it
+  const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
+  add(centre, equal ? sphere(semi_axes[0]) : rotated);
 }
 
 }  // namespace pwcontact

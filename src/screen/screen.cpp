@@ -32,7 +32,7 @@ struct ThreadPairs {
   std::vector<Undecided> undecided;  // waiting for the next chunk's solve
   std::vector<std::uint64_t> found;  // i << 32 | j
   std::vector<double> found_mu2;     // with_mu2
-  std::size_t candidates = 0, out = 0, in = 0, solved = 0, invalid = 0, fallbacks = 0;
+  std::size_t candidates = 0, out = 0, in = 0, spheres = 0, solved = 0, invalid = 0, fallbacks = 0;
   double evaluations = 0;  // summed over the solved pairs
   double seconds_compaction = 0, seconds_solve = 0;
   BatchReport last;  // of the last chunk solved (settings as resolved)
@@ -158,6 +158,18 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
           return;
         }
         const std::uint32_t a = std::min(c.i, c.j), b = std::max(c.i, c.j);
+        if (home.sphere[c.at_i] > 0 && grid.sphere[c.at_j] > 0) {
+          // Two spheres: mu = |r| / (a_i + a_j) (theory: Q(lambda) is then a
+          // multiple of I), to a few roundings.
+          const double sum = home.sphere[c.at_i] + grid.sphere[c.at_j];
+          const double mu2 = rr / (sum * sum);
+          ++mine.spheres;
+          if (mu2 < cutoff * cutoff) {
+            mine.found.push_back(pair_key(a, b));
+            if (options.with_mu2) mine.found_mu2.push_back(mu2);
+          }
+          return;
+        }
         const double inner = cutoff * (home.inscribed[c.at_i] + grid.inscribed[c.at_j]);
         if (!options.with_mu2 && rr < inner * inner) {
           mine.found.push_back(pair_key(a, b));
@@ -184,6 +196,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
     report.candidate_pairs += t.candidates;
     report.decided_out += t.out;
     report.decided_in += t.in;
+    report.decided_spheres += t.spheres;
     report.solved += t.solved;
     report.invalid += t.invalid;
     report.batch.fallbacks += t.fallbacks;
