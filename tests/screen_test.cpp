@@ -250,6 +250,47 @@ TEST(Screen, PairsOfSpheresAreDecidedInClosedFormWithoutASolve) {
   compare(s, box, 1.2, with_mu2, "spheres, cutoff 1.2");
 }
 
+TEST(Screen, ACandidateListOfOnesOwnGivesTheSamePairsAsTheCellLists) {
+  // Every pair (i < j) within 3 of each other, listed both ways round and
+  // some twice: the pairs found must be the cell lists' (each once), for a
+  // polydisperse periodic scene with mu^2 and without.
+  const SceneSpec spec{800, 0.3, 3, 0.1, 0.5, 10.0, true, 10};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  std::vector<std::uint32_t> first, second;
+  for (std::uint32_t i = 0; i < s.size(); ++i)
+    for (std::uint32_t j = i + 1; j < s.size(); ++j) {
+      const auto r = separation(s, box, i, j);
+      if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= 9) continue;
+      first.push_back(j % 2 ? i : j);  // either order
+      second.push_back(j % 2 ? j : i);
+      if (j % 7 == 0) first.push_back(i), second.push_back(j);  // and some twice
+    }
+  for (bool with_mu2 : {false, true}) {
+    ScreenOptions options;
+    options.with_mu2 = with_mu2;
+    ScreenedPairs from_cells, from_list;
+    pwcontact::screen_pairs(s, box, options, from_cells);
+    const ScreenReport report =
+        pwcontact::screen_candidates(s, box, first.data(), second.data(), first.size(), options,
+                                     from_list);
+    EXPECT_EQ(report.candidate_pairs, first.size());
+    EXPECT_EQ(from_list.i, from_cells.i) << "with_mu2 " << with_mu2;
+    EXPECT_EQ(from_list.j, from_cells.j) << "with_mu2 " << with_mu2;
+    ASSERT_EQ(from_list.mu2.size(), from_cells.mu2.size());
+    for (std::size_t k = 0; k < from_list.mu2.size(); ++k)
+      EXPECT_NEAR(from_list.mu2[k], from_cells.mu2[k], 1e-13 * from_cells.mu2[k]) << k;
+    EXPECT_GT(from_cells.size(), 100u);
+  }
+  const std::uint32_t bad_first[] = {0, 5}, bad_second[] = {1, 5};
+  ScreenedPairs out;
+  EXPECT_THROW(pwcontact::screen_candidates(s, box, bad_first, bad_second, 2, {}, out),
+               std::invalid_argument);
+  const std::uint32_t beyond[] = {800};
+  EXPECT_THROW(pwcontact::screen_candidates(s, box, beyond, bad_second, 1, {}, out),
+               std::invalid_argument);
+}
+
 TEST(Screen, ThePairsAndTheirOrderDoNotDependOnTheThreadCount) {
   const SceneSpec spec{1500, 0.3, 3, 0.05, 0.6, 12.0, true, 8};
   const ParticleStore s = make_scene(spec);

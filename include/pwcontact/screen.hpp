@@ -118,6 +118,19 @@ struct ScreenReport {
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
                           const ScreenOptions& options, ScreenedPairs& out);
 
+// The same pipeline (prefilters, solve, sorted output) on a candidate list of
+// one's own, e.g. from an existing neighbour list: the pairs (first[k],
+// second[k]), k < count, in either order; a pair listed more than once is
+// reported once. r12 by the minimum image in a periodic box (which must then
+// be at least twice the largest reach, as for screen_pairs). Throws
+// std::invalid_argument for an index out of range or a particle paired with
+// itself (naming the candidate), and as screen_pairs. The report has no cell
+// lists (size_classes 0, seconds_cells 0).
+ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
+                               const std::uint32_t* first, const std::uint32_t* second,
+                               std::size_t count, const ScreenOptions& options,
+                               ScreenedPairs& out);
+
 // Every pair (i < j) the cell lists compare for this cutoff — a superset of
 // the pairs with mu < cutoff, before any prefilter — with r12 = c_j - c_i by
 // the minimum image: visit(thread, i, j, r12) is called from the OpenMP

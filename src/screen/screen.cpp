@@ -95,6 +95,57 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
   t.seconds_solve += omp_get_wtime() - compacted;
 }
 
+// One side of a candidate pair: its particle index and radii, and where its
+// form is (an array of the six q arrays, and the place in them).
+struct Side {
+  std::uint32_t index;
+  double bounding, inscribed, sphere;
+  const double* const* q;
+  std::uint32_t at;
+};
+
+// The prefilters on the pair (p, o) with r = c_o - c_p: apart by the bounding
+// spheres; pairs of spheres in closed form; overlapping by the inscribed
+// spheres; the rest waits for the next chunk's solve.
+void classify_pair(ThreadPairs& mine, const ScreenOptions& options, const Side& p, const Side& o,
+                   const double r[3]) {
+  ++mine.candidates;
+  const double cutoff = options.cutoff;
+  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+  const double reach = cutoff * (p.bounding + o.bounding);
+  if (rr >= reach * reach) {
+    ++mine.out;
+    return;
+  }
+  const bool p_first = p.index < o.index;
+  const std::uint32_t a = p_first ? p.index : o.index, b = p_first ? o.index : p.index;
+  if (p.sphere > 0 && o.sphere > 0) {
+    // Two spheres: mu = |r| / (a_i + a_j) (Q(lambda) is then a multiple of
+    // I), to a few roundings.
+    const double sum = p.sphere + o.sphere;
+    const double mu2 = rr / (sum * sum);
+    ++mine.spheres;
+    if (mu2 < cutoff * cutoff) {
+      mine.found.push_back(pair_key(a, b));
+      if (options.with_mu2) mine.found_mu2.push_back(mu2);
+    }
+    return;
+  }
+  const double inner = cutoff * (p.inscribed + o.inscribed);
+  if (!options.with_mu2 && rr < inner * inner) {
+    mine.found.push_back(pair_key(a, b));
+    ++mine.in;
+    return;
+  }
+  // r12 from the lower index to the higher: the pair as (a, b).
+  const double sign = p_first ? 1 : -1;
+  const Side& first = p_first ? p : o;
+  const Side& second = p_first ? o : p;
+  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]}, first.q, second.q,
+                            first.at, second.at});
+  if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
+}
+
 void check(const ParticleStore& particles, const Box& box, const ScreenOptions& options) {
   if (!(options.cutoff > 0) || !std::isfinite(options.cutoff))
     throw std::invalid_argument("screen_pairs: the cutoff must be positive and finite, got " +
@@ -119,75 +170,12 @@ void check(const ParticleStore& particles, const Box& box, const ScreenOptions& 
 
 }  // namespace
 
-ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
-                          const ScreenOptions& options, ScreenedPairs& out) {
-  check(particles, box, options);
-  ScreenReport report;
-  report.particles = particles.size();
-  out = {};
-  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
-  report.threads = threads;
-  const double cutoff = options.cutoff;
+namespace {
 
-  double t0 = omp_get_wtime();
-  const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
-  report.size_classes = lists.grids.size();
-  double t1 = omp_get_wtime();
-  report.seconds_cells = t1 - t0;
-
-  // Candidates and prefilters; the undecided pairs solved chunk by chunk.
-  std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
-  // Each grid's six q arrays, as pointers the undecided pairs refer to.
-  std::vector<std::array<const double*, 6>> grid_q_storage(lists.grids.size());
-  std::vector<const double* const*> grid_q(lists.grids.size());
-  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
-    for (int k = 0; k < 6; ++k) grid_q_storage[g][std::size_t(k)] = lists.grids[g].q[k].data();
-    grid_q[g] = grid_q_storage[g].data();
-  }
-  screen::search_candidates(
-      lists, box, threads, options.progress,
-      [&](int thread, const screen::Candidate& c) {
-        ThreadPairs& mine = per_thread[std::size_t(thread)];
-        ++mine.candidates;
-        const screen::ClassGrid& home = lists.grids[c.class_i];
-        const screen::ClassGrid& grid = lists.grids[c.class_j];
-        const double rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
-        const double reach = cutoff * (home.bounding[c.at_i] + grid.bounding[c.at_j]);
-        if (rr >= reach * reach) {
-          ++mine.out;
-          return;
-        }
-        const std::uint32_t a = std::min(c.i, c.j), b = std::max(c.i, c.j);
-        if (home.sphere[c.at_i] > 0 && grid.sphere[c.at_j] > 0) {
-          // Two spheres: mu = |r| / (a_i + a_j) (theory: Q(lambda) is then a
-          // multiple of I), to a few roundings.
-          const double sum = home.sphere[c.at_i] + grid.sphere[c.at_j];
-          const double mu2 = rr / (sum * sum);
-          ++mine.spheres;
-          if (mu2 < cutoff * cutoff) {
-            mine.found.push_back(pair_key(a, b));
-            if (options.with_mu2) mine.found_mu2.push_back(mu2);
-          }
-          return;
-        }
-        const double inner = cutoff * (home.inscribed[c.at_i] + grid.inscribed[c.at_j]);
-        if (!options.with_mu2 && rr < inner * inner) {
-          mine.found.push_back(pair_key(a, b));
-          ++mine.in;
-          return;
-        }
-        // r12 from the lower index to the higher: the pair as (a, b).
-        const bool i_first = a == c.i;
-        const double sign = i_first ? 1 : -1;
-        const double* const* q_i = grid_q[c.class_i];
-        const double* const* q_j = grid_q[c.class_j];
-        mine.undecided.push_back({a, b, {sign * c.r[0], sign * c.r[1], sign * c.r[2]},
-                                  i_first ? q_i : q_j, i_first ? q_j : q_i,
-                                  i_first ? c.at_i : c.at_j, i_first ? c.at_j : c.at_i});
-        if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
-      },
-      [&](int thread) { solve_waiting(per_thread[std::size_t(thread)], options); });
-  if (options.progress) options.progress(1);
+// Sums what the threads counted into the report, and the pairs found,
+// sorted by (i, j) and each once, into out. t1: when the search began.
+void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, int threads,
+            double t1, ScreenReport& report, ScreenedPairs& out) {
   // Compaction and solve ran inside the search, chunk by chunk: their times
   // are the threads' summed times shared out over the threads, and the
   // search's time what remains of the stage.
@@ -227,6 +215,10 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
     for (const ThreadPairs& t : per_thread)
       for (std::size_t k = 0; k < t.found.size(); ++k) found.push_back({t.found[k], t.found_mu2[k]});
     std::sort(found.begin(), found.end());
+    // A pair listed twice (candidate lists) is kept once.
+    found.erase(std::unique(found.begin(), found.end(),
+                            [](const auto& x, const auto& y) { return x.first == y.first; }),
+                found.end());
     out.i.resize(found.size());
     out.j.resize(found.size());
     out.mu2.resize(found.size());
@@ -245,6 +237,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
       std::vector<std::uint64_t>().swap(t.found);
     }
     std::sort(found.begin(), found.end());
+    found.erase(std::unique(found.begin(), found.end()), found.end());
     out.i.resize(found.size());
     out.j.resize(found.size());
     for (std::size_t k = 0; k < found.size(); ++k) {
@@ -254,6 +247,98 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   }
   report.found = out.size();
   report.seconds_output = omp_get_wtime() - t4;
+}
+
+}  // namespace
+
+
+ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
+                          const ScreenOptions& options, ScreenedPairs& out) {
+  check(particles, box, options);
+  ScreenReport report;
+  report.particles = particles.size();
+  out = {};
+  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  report.threads = threads;
+  const double cutoff = options.cutoff;
+
+  double t0 = omp_get_wtime();
+  const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
+  report.size_classes = lists.grids.size();
+  double t1 = omp_get_wtime();
+  report.seconds_cells = t1 - t0;
+
+  // Candidates and prefilters; the undecided pairs solved chunk by chunk.
+  std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+  // Each grid's six q arrays, as pointers the undecided pairs refer to.
+  std::vector<std::array<const double*, 6>> grid_q_storage(lists.grids.size());
+  std::vector<const double* const*> grid_q(lists.grids.size());
+  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
+    for (int k = 0; k < 6; ++k) grid_q_storage[g][std::size_t(k)] = lists.grids[g].q[k].data();
+    grid_q[g] = grid_q_storage[g].data();
+  }
+  screen::search_candidates(
+      lists, box, threads, options.progress,
+      [&](int thread, const screen::Candidate& c) {
+        const screen::ClassGrid& home = lists.grids[c.class_i];
+        const screen::ClassGrid& grid = lists.grids[c.class_j];
+        classify_pair(per_thread[std::size_t(thread)], options,
+                      {c.i, home.bounding[c.at_i], home.inscribed[c.at_i], home.sphere[c.at_i],
+                       grid_q[c.class_i], c.at_i},
+                      {c.j, grid.bounding[c.at_j], grid.inscribed[c.at_j], grid.sphere[c.at_j],
+                       grid_q[c.class_j], c.at_j},
+                      c.r);
+      },
+      [&](int thread) { solve_waiting(per_thread[std::size_t(thread)], options); });
+  if (options.progress) options.progress(1);
+  finish(per_thread, options, threads, t1, report, out);
+  return report;
+}
+
+ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
+                               const std::uint32_t* first, const std::uint32_t* second,
+                               std::size_t count, const ScreenOptions& options,
+                               ScreenedPairs& out) {
+  check(particles, box, options);
+  if (count > 0 && (!first || !second))
+    throw std::invalid_argument("screen_candidates: null candidate arrays");
+  const std::size_t n = particles.size();
+  for (std::size_t k = 0; k < count; ++k)
+    if (first[k] >= n || second[k] >= n || first[k] == second[k])
+      throw std::invalid_argument("screen_candidates: candidate " + std::to_string(k) + " (" +
+                                  std::to_string(first[k]) + ", " + std::to_string(second[k]) +
+                                  ") is not a pair of two of the " + std::to_string(n) +
+                                  " particles");
+  ScreenReport report;
+  report.particles = n;
+  out = {};
+  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  report.threads = threads;
+  const double t1 = omp_get_wtime();
+  std::array<const double*, 6> q_storage;
+  for (int k = 0; k < 6; ++k) q_storage[std::size_t(k)] = particles.q(k).data();
+  const double* const* q = q_storage.data();
+  const std::vector<double>& bounding = particles.bounding_radius();
+  const std::vector<double>& inscribed = particles.inscribed_radius();
+  const std::vector<double>& sphere = particles.sphere_radius();
+  std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+#pragma omp parallel num_threads(threads)
+  {
+    ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
+#pragma omp for schedule(static)
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t i = first[k], j = second[k];
+      double r[3];
+      for (int a = 0; a < 3; ++a) {
+        r[a] = particles.centre(a)[j] - particles.centre(a)[i];
+        if (box.periodic) r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
+      }
+      classify_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], q, i},
+                    {j, bounding[j], inscribed[j], sphere[j], q, j}, r);
+    }
+    solve_waiting(mine, options);
+  }
+  finish(per_thread, options, threads, t1, report, out);
   return report;
 }
 
