@@ -104,19 +104,24 @@ struct Side {
   std::uint32_t at;
 };
 
-// The prefilters on the pair (p, o) with r = c_o - c_p: apart by the bounding
-// spheres; pairs of spheres in closed form; overlapping by the inscribed
-// spheres; the rest waits for the next chunk's solve.
-void classify_pair(ThreadPairs& mine, const ScreenOptions& options, const Side& p, const Side& o,
-                   const double r[3]) {
+// The first prefilter, on every candidate: apart when the bounding spheres
+// scaled by the cutoff do not meet (most candidates: kept to a few
+// operations, before anything else about the pair is loaded).
+inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double rr,
+                                      double bounding_sum) {
   ++mine.candidates;
+  const double reach = cutoff * bounding_sum;
+  if (rr < reach * reach) return false;
+  ++mine.out;
+  return true;
+}
+
+// The pair (p, o) with r = c_o - c_p that the bounding spheres left: pairs of
+// spheres in closed form; overlapping by the inscribed spheres; the rest
+// waits for the next chunk's solve.
+inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, const Side& p,
+                               const Side& o, const double r[3], double rr) {
   const double cutoff = options.cutoff;
-  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-  const double reach = cutoff * (p.bounding + o.bounding);
-  if (rr >= reach * reach) {
-    ++mine.out;
-    return;
-  }
   const bool p_first = p.index < o.index;
   const std::uint32_t a = p_first ? p.index : o.index, b = p_first ? o.index : p.index;
   if (p.sphere > 0 && o.sphere > 0) {
@@ -280,14 +285,19 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   screen::search_candidates(
       lists, box, threads, options.progress,
       [&](int thread, const screen::Candidate& c) {
+        ThreadPairs& mine = per_thread[std::size_t(thread)];
         const screen::ClassGrid& home = lists.grids[c.class_i];
         const screen::ClassGrid& grid = lists.grids[c.class_j];
-        classify_pair(per_thread[std::size_t(thread)], options,
-                      {c.i, home.bounding[c.at_i], home.inscribed[c.at_i], home.sphere[c.at_i],
-                       grid_q[c.class_i], c.at_i},
-                      {c.j, grid.bounding[c.at_j], grid.inscribed[c.at_j], grid.sphere[c.at_j],
-                       grid_q[c.class_j], c.at_j},
-                      c.r);
+        const double rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
+        if (apart_by_bounding_spheres(mine, options.cutoff, rr,
+                                      home.bounding[c.at_i] + grid.bounding[c.at_j]))
+          return;
+        classify_near_pair(mine, options,
+                           {c.i, home.bounding[c.at_i], home.inscribed[c.at_i],
+                            home.sphere[c.at_i], grid_q[c.class_i], c.at_i},
+                           {c.j, grid.bounding[c.at_j], grid.inscribed[c.at_j],
+                            grid.sphere[c.at_j], grid_q[c.class_j], c.at_j},
+                           c.r, rr);
       },
       [&](int thread) { solve_waiting(per_thread[std::size_t(thread)], options); });
   if (options.progress) options.progress(1);
@@ -333,8 +343,10 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
         r[a] = particles.centre(a)[j] - particles.centre(a)[i];
         if (box.periodic) r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
       }
-      classify_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], q, i},
-                    {j, bounding[j], inscribed[j], sphere[j], q, j}, r);
+      const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+      if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) continue;
+      classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], q, i},
+                         {j, bounding[j], inscribed[j], sphere[j], q, j}, r, rr);
     }
     solve_waiting(mine, options);
   }
