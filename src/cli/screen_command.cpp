@@ -46,8 +46,9 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
       "Output: one pair per line, 'i j' (0-based indices of the ellipsoids in input "
       "order, i < j), and with --with-mu2 'i j mu2' (17 significant digits), sorted by "
       "i then j whatever the thread count. Pairs are decided by the bounding and "
-      "inscribed spheres where they can be, the rest by the batch path's certified "
-      "overlap answers (or mu^2); the answer agrees with mu^2 < cutoff^2 whenever "
+      "inscribed spheres where they can be, pairs of spheres in closed form, the rest by "
+      "the batch path's certified overlap answers (or mu^2); the answer agrees with "
+      "mu^2 < cutoff^2 whenever "
       "|mu^2 - cutoff^2| > 1e-9 cutoff^2.\n\n"
       "A summary goes to standard error: particles, candidate pairs from the cell "
       "lists, decided by the prefilters, solved, found, the time of each stage and the "
@@ -65,7 +66,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
              options.format, "how each line gives an ellipsoid (see Input)");
   parser.add_flag({"--with-mu2"},
                   "also write mu^2 of every pair found (every pair within the bounding "
-                  "spheres' reach is then solved)",
+                  "spheres' reach is then solved, pairs of spheres in closed form)",
                   [&options] { options.with_mu2 = true; });
   parser.add_value(
       {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
