@@ -252,10 +252,7 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
       "the Newton iteration of the batch path (advanced): auto, the measured best "
       "for the precision; newton, in lambda; log_odds, in ln(lambda / (1 - lambda)), "
       "steadier for elongated shapes. The summary names the one used");
-  parser.add_value(
-      {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
-      "OpenMP threads, 0 to 1024; results do not depend on it",
-      [&options](std::string_view value) { options.threads = int(parse_integer(value, 0, 1024)); });
+  add_threads_option(parser, options.threads, "results");
   parser.add_value(
       {"--isa"}, "auto|sse2|avx2|avx512",
       "auto = PWCONTACT_ISA if set, else the best; here " +
@@ -284,6 +281,13 @@ Isa resolve_instruction_set(Isa requested) {
     throw CommandError(ExitStatus::usage_error,
                        std::string(e.what()) + "; this CPU runs: " + supported_isa_list());
   }
+}
+
+void add_threads_option(OptionParser& parser, int& threads, const std::string& what) {
+  parser.add_value(
+      {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
+      "OpenMP threads, 0 to 1024; " + what + " do not depend on it",
+      [&threads](std::string_view value) { threads = int(parse_integer(value, 0, 1024)); });
 }
 
 int resolve_thread_count(int threads) { return threads > 0 ? threads : omp_get_max_threads(); }

@@ -165,6 +165,10 @@ void check_solver_options(const OptionParser& parser, const SolverOptions& optio
 Isa resolve_instruction_set(Isa requested);
 
 // The OpenMP thread count `threads` stands for (0: the OpenMP default).
+// Adds --threads N (0 to 1024, 0: the OpenMP default) to `threads`; `what`
+// names what does not depend on it ("results", "the pairs").
+void add_threads_option(OptionParser& parser, int& threads, const std::string& what);
+
 int resolve_thread_count(int threads);
 
 }  // namespace pwcontact::cli

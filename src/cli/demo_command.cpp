@@ -60,10 +60,7 @@ OptionParser demo_parser(DemoOptions& options) {
                    });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
-  parser.add_value(
-      {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
-      "OpenMP threads, 0 to 1024; the pairs do not depend on it",
-      [&options](std::string_view value) { options.threads = int(parse_integer(value, 0, 1024)); });
+  add_threads_option(parser, options.threads, "the pairs");
   return parser;
 }
 
@@ -130,15 +127,13 @@ ExitStatus run_demo(const Arguments& arguments) {
   {
     ProgressBar bar("screening: candidates");
     screen_options.progress = [&bar](double fraction) { bar.update(fraction); };
-    const Box periodic = Box::periodic_box(box, box, box);
     try {
-      report = screen_pairs(particles, periodic, screen_options, pairs);
+      report = screen_pairs(particles, scene.box, screen_options, pairs);
     } catch (const std::invalid_argument& e) {
       throw CommandError(ExitStatus::usage_error, e.what());
     }
   }
-  std::fputs(describe_screen(report, Box::periodic_box(box, box, box), options.cutoff).c_str(),
-             stdout);
+  std::fputs(describe_screen(report, scene.box, options.cutoff).c_str(), stdout);
   return ExitStatus::success;
 }
 

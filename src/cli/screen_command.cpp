@@ -68,10 +68,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                   "also write mu^2 of every pair found (every pair within the bounding "
                   "spheres' reach is then solved, pairs of spheres in closed form)",
                   [&options] { options.with_mu2 = true; });
-  parser.add_value(
-      {"--threads"}, "N", "0 = all OpenMP offers, here " + std::to_string(omp_get_max_threads()),
-      "OpenMP threads, 0 to 1024; the pairs do not depend on it",
-      [&options](std::string_view value) { options.threads = int(parse_integer(value, 0, 1024)); });
+  add_threads_option(parser, options.threads, "the pairs");
   parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
                    "write the pairs to OUT; it appears only when the run succeeds (written "
                    "beside it, then renamed into place)",
