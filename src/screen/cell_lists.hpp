@@ -4,12 +4,14 @@
 // Particles fall into classes by bounding radius R, halving from the
 // largest: class c holds R in (R_max / 2^(c+1), R_max / 2^c] (the last class
 // takes everything smaller). Each class has its own grid, with cells at least
-// as wide as the reach of two of its largest members, cutoff * 2 R_c. A pair
-// of classes a, b with R_b >= R_a (b <= a) is found from the members of a
-// in the grid of b: their reach cutoff (R_i + R_j) <= cutoff * 2 R_b is at
-// most a cell of b, so the 27 cells around a member hold every partner.
-// Each pair is met once: within a class from its lower index, across
-// classes from the smaller particle.
+// as wide as 1 / span of the reach of two of its largest members,
+// cutoff * 2 R_c. A pair of classes a, b with R_b >= R_a (b <= a) is found
+// from the members of a in the grid of b: their reach cutoff (R_i + R_j) <=
+// cutoff * 2 R_b is at most span cells of b, so the (2 span + 1)^3 cells
+// around a member hold every partner. Each pair is met once: within a class
+// from its earlier place in cell order, across classes from the smaller
+// particle. A coarse distance test on wrapped positions drops most pairs
+// before anything else about them is read.
 #pragma once
 
 #include <array>
@@ -17,30 +19,52 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <type_traits>
 #include <vector>
 
 #include <omp.h>
 
 #include "pwcontact/screen.hpp"
+#include "screen/uninitialized.hpp"
 
 namespace pwcontact::screen {
 
+// What the candidate search reads of every member it compares: the centre
+// wrapped into [0, L] (periodic; as given otherwise) and cutoff * bounding
+// radius, for a coarse distance test, in one half cache line.
+struct CoarseMember {
+  double wrapped[3];
+  double reach;
+};
+
+// The rest of a member, read only for the pairs that pass the coarse test
+// (a few in a hundred), in two cache lines: its index, the centre as given
+// with the number of box lengths that wraps it (so that a pair's r12 is the
+// plain difference of its centres plus one multiple of the box length,
+// rounded once: wrapped coordinates would cost eps L of it), its radii, and
+// its form.
+struct alignas(64) Member {
+  double position[3];
+  double bounding, inscribed, sphere;
+  double q[6];
+  std::int32_t image[3];  // floor(x / L) per axis (periodic), else 0
+  std::uint32_t index;    // in the particle store
+};
+
 // One class's grid: its members sorted by cell (counting sort, stable, so
-// the order is that of the particle indices within a cell), with copies of
-// what the candidate search reads, in that order: a cell's members are then
-// contiguous in memory (the search streams through them instead of jumping
-// across the particle arrays). Positions are kept as given, with the number
-// of box lengths that wraps them into the box (periodic boxes), so that a
-// pair's r12 is the plain difference of its centres plus one multiple of the
-// box length, rounded once (wrapped coordinates would cost eps L of it).
+// the order is that of the particle indices within a cell), copied in that
+// order: a cell's members are then contiguous in memory, and so are those
+// of a run of cells along z (the search streams through rows of cells
+// instead of jumping across the particle arrays).
 struct ClassGrid {
-  double radius = 0;                   // the largest bounding radius in the class
+  double radius = 0;  // the largest bounding radius in the class
+  int span = 1;       // cells per reach: a member's partners lie within span cells along every axis
   std::array<int, 3> cells = {1, 1, 1};
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
-  std::vector<std::uint32_t> cell_start;  // cells + 1 offsets into members
-  std::vector<std::uint32_t> members;     // particle indices, by cell
-  std::vector<double> position[3], bounding, inscribed, sphere, q[6];  // by member
-  std::vector<std::int32_t> image[3];  // floor(x / L) per member (periodic), else 0
+  std::vector<std::uint32_t> cell_start;           // cells + 1 offsets into the members
+  UninitializedVector<CoarseMember> coarse;        // by member
+  UninitializedVector<Member> member;              // by member
+  std::size_t size() const { return member.size(); }
 };
 
 struct CellLists {
@@ -48,6 +72,10 @@ struct CellLists {
   std::array<double, 3> origin = {0, 0, 0};  // open boxes: the lower corner of all centres
   std::vector<std::uint8_t> size_class;      // per particle
   std::vector<ClassGrid> grids;              // by class, largest radii first
+  // How far the coarse distance test (wrapped positions, reach rounded) may
+  // be from the exact one, as a length: it lets a pair through when its
+  // distance is within this of the reach, and the exact test decides.
+  double slack = 0;
 
   // A coordinate wrapped into [0, L] when periodic (as given otherwise).
   double wrapped(int k, double x) const {
@@ -63,124 +91,153 @@ struct CellLists {
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
                            int threads);
 
-// Calls visit(begin, end, shift, nearest_image) for the members [begin, end)
-// of every cell of `grid` around the wrapped position p (at most 27 cells,
-// each once). shift (-1, 0 or 1 box lengths) takes a member's wrapped
-// position to its image nearest p's cell (periodic wrap-around); where a
-// periodic grid has fewer than 3 cells along an axis one cell can neighbour
-// p's from both sides, and nearest_image asks the caller to take the minimum
-// image itself.
-template <class Visit>
-void for_each_neighbour_cell(const CellLists& lists, const ClassGrid& grid,
-                             const std::array<double, 3>& p, Visit&& visit) {
-  int cell[3][3], count[3];
-  int shift[3][3];
-  bool nearest_image = false;
-  for (int k = 0; k < 3; ++k) {
-    const int centre = lists.cell_of(grid, k, p[k]);
-    const int n = grid.cells[k];
-    count[k] = 0;
-    if (lists.box.periodic && n < 3) {
-      nearest_image = true;
-      for (int c = 0; c < n; ++c) cell[k][count[k]] = c, shift[k][count[k]++] = 0;
-      continue;
-    }
-    for (int d = -1; d <= 1; ++d) {
-      int c = centre + d;
-      int s = 0;
-      if (lists.box.periodic) {
-        if (c < 0) c += n, s = -1;
-        if (c >= n) c -= n, s = 1;
-      } else if (c < 0 || c >= n) {
-        continue;
-      }
-      cell[k][count[k]] = c;
-      shift[k][count[k]++] = s;
-    }
-  }
-  for (int a = 0; a < count[0]; ++a)
-    for (int b = 0; b < count[1]; ++b) {
-      const std::size_t row =
-          (std::size_t(cell[0][a]) * std::size_t(grid.cells[1]) + std::size_t(cell[1][b])) *
-          std::size_t(grid.cells[2]);
-      for (int c = 0; c < count[2]; ++c) {
-        const std::size_t at = row + std::size_t(cell[2][c]);
-        const int s[3] = {shift[0][a], shift[1][b], shift[2][c]};
-        visit(grid.cell_start[at], grid.cell_start[at + 1], s, nearest_image);
-      }
-    }
-}
-
-// A candidate pair: particle i (class class_i, place at_i in its grid) and
-// j (class_j, at_j), r = c_j - c_i by the nearest image.
+// A candidate pair: members i and j of their grids, r = c_j - c_i by the
+// nearest image.
 struct Candidate {
-  std::uint32_t i, j, at_i, at_j;
-  std::size_t class_i, class_j;
+  const Member* i;
+  const Member* j;
   double r[3];
 };
 
-// Every candidate pair once (within a class from the lower index, across
-// classes from the smaller particle): calls on_candidate(thread, candidate)
-// in the thread that finds it, then done(thread) when the thread has no more.
-// Each class's members are taken in cell order (the neighbour cells of
-// consecutive members are the same, and in cache), shared among the threads;
-// progress (may be empty) hears the fraction done now and then.
-template <class OnCandidate, class Done>
+// The cells of `grid` within span cells of a position's cell along one axis,
+// as at most two runs of consecutive cells, each with the shift (-1, 0 or 1
+// box lengths) that takes a member's wrapped position to its image nearest
+// the position (periodic wrap-around). Where a periodic grid has fewer than
+// 2 span + 1 cells along the axis a cell can neighbour the position's from
+// both sides: then one run of every cell, and nearest_image is set (the
+// caller takes the minimum image itself).
+struct CellRuns {
+  int count = 0;
+  int first[2], last[2], shift[2];
+  bool nearest_image = false;
+};
+
+inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double x) {
+  CellRuns runs;
+  const int n = grid.cells[k], span = grid.span;
+  const int centre = lists.cell_of(grid, k, x);
+  auto add = [&](int first, int last, int shift) {
+    runs.first[runs.count] = first;
+    runs.last[runs.count] = last;
+    runs.shift[runs.count++] = shift;
+  };
+  if (!lists.box.periodic) {
+    add(std::max(0, centre - span), std::min(n - 1, centre + span), 0);
+  } else if (n < 2 * span + 1) {
+    runs.nearest_image = true;
+    add(0, n - 1, 0);
+  } else if (centre - span < 0) {
+    add(centre - span + n, n - 1, -1);
+    add(0, centre + span, 0);
+  } else if (centre + span >= n) {
+    add(centre - span, n - 1, 0);
+    add(0, centre + span - n, 1);
+  } else {
+    add(centre - span, centre + span, 0);
+  }
+  return runs;
+}
+
+// Every candidate pair once (within a class the pair (at, m) from at < m,
+// the places in cell order; across classes from the smaller particle). With
+// `coarse_filter`, a pair only when the distance of the wrapped positions is
+// less than its reach cutoff (R_i + R_j) plus the slack; without, every pair
+// of neighbouring cells. Calls on_candidate(thread, candidate) in the thread
+// that finds it (r12 exact, by the nearest image), and done(thread,
+// compared, passed) when the thread has no more: the pairs it compared and
+// those it passed on. Each class's members are taken in cell order (the
+// neighbour cells of consecutive members are the same, and in cache), shared
+// among the threads; progress (may be empty) hears the fraction done now and
+// then.
+template <bool coarse_filter, class OnCandidate, class Done>
 void search_candidates(const CellLists& lists, const Box& box, int threads,
                        const std::function<void(double)>& progress, OnCandidate&& on_candidate,
                        Done&& done) {
   std::size_t total = 0;
   std::vector<std::size_t> done_before(lists.grids.size() + 1, 0);  // members of earlier classes
   for (std::size_t g = 0; g < lists.grids.size(); ++g) {
-    done_before[g + 1] = done_before[g] + lists.grids[g].members.size();
-    total += lists.grids[g].members.size();
+    done_before[g + 1] = done_before[g] + lists.grids[g].size();
+    total += lists.grids[g].size();
   }
 #pragma omp parallel num_threads(threads)
   {
     const int thread = omp_get_thread_num();
+    std::size_t compared = 0, passed = 0;
     Candidate c;
     for (std::size_t own = 0; own < lists.grids.size(); ++own) {
       const ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
-      for (std::size_t at = 0; at < home.members.size(); ++at) {
+      for (std::size_t at = 0; at < home.size(); ++at) {
         if (progress && thread == 0 && at % 16384 == 0)
           progress((double(done_before[own]) + double(at)) / double(total));
-        c.i = home.members[at];
-        c.at_i = std::uint32_t(at);
-        c.class_i = own;
-        // The cell search takes the wrapped position; r the given centres
-        // plus one multiple of the box length per axis.
-        const double centre[3] = {home.position[0][at], home.position[1][at], home.position[2][at]};
-        const std::array<double, 3> p = {lists.wrapped(0, centre[0]), lists.wrapped(1, centre[1]),
-                                         lists.wrapped(2, centre[2])};
-        const std::int32_t image_i[3] = {home.image[0][at], home.image[1][at], home.image[2][at]};
+        const Member& i = home.member[at];
+        c.i = &i;
+        const CoarseMember& coarse_i = home.coarse[at];
+        const double reach_i = coarse_i.reach + lists.slack;
         // Classes of radii at least as large as i's (indices 0 .. own).
         for (std::size_t g = 0; g <= own; ++g) {
           const ClassGrid& grid = lists.grids[g];
-          c.class_j = g;
-          for_each_neighbour_cell(
-              lists, grid, p,
-              [&](std::uint32_t begin, std::uint32_t end, const int (&shift)[3],
-                  bool nearest_image) {
-                for (std::uint32_t m = begin; m < end; ++m) {
-                  c.j = grid.members[m];
-                  if (g == own && c.j <= c.i) continue;  // within a class, from the lower index
-                  c.at_j = m;
-                  for (int k = 0; k < 3; ++k) {
-                    c.r[k] = grid.position[k][m] - centre[k];
-                    const int lengths = shift[k] - (grid.image[k][m] - image_i[k]);
-                    if (lengths != 0) c.r[k] += double(lengths) * box.length[k];
+          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, coarse_i.wrapped[0]),
+                                    neighbour_runs(lists, grid, 1, coarse_i.wrapped[1]),
+                                    neighbour_runs(lists, grid, 2, coarse_i.wrapped[2])};
+          const bool nearest_image =
+              runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
+          // The members of one run of cells along z: contiguous.
+          // (nearest_image a compile-time constant: the common case keeps a
+          // tight loop.)
+          auto visit_run = [&](auto nearest_image, std::uint32_t begin, std::uint32_t end,
+                               const int (&shift)[3]) {
+            if (g == own) begin = std::max(begin, std::uint32_t(at + 1));
+            if (begin >= end) return;
+            compared += end - begin;
+            double origin[3];  // i's wrapped position seen from the members' images
+            for (int k = 0; k < 3; ++k)
+              origin[k] = coarse_i.wrapped[k] - double(shift[k]) * box.length[k];
+            const CoarseMember* coarse = grid.coarse.data();
+            for (std::uint32_t m = begin; m < end; ++m) {
+              if (coarse_filter) {
+                double d[3] = {coarse[m].wrapped[0] - origin[0], coarse[m].wrapped[1] - origin[1],
+                               coarse[m].wrapped[2] - origin[2]};
+                if (nearest_image)
+                  for (int k = 0; k < 3; ++k)
+                    d[k] -= box.length[k] * std::nearbyint(d[k] / box.length[k]);
+                const double limit = reach_i + coarse[m].reach;
+                if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
+              }
+              ++passed;
+              const Member& j = grid.member[m];
+              c.j = &j;
+              for (int k = 0; k < 3; ++k) {
+                c.r[k] = j.position[k] - i.position[k];
+                const int lengths = shift[k] - (j.image[k] - i.image[k]);
+                if (lengths != 0) c.r[k] += double(lengths) * box.length[k];
+              }
+              if (nearest_image)
+                for (int k = 0; k < 3; ++k)
+                  c.r[k] -= box.length[k] * std::nearbyint(c.r[k] / box.length[k]);
+              on_candidate(thread, c);
+            }
+          };
+          const std::size_t ny = std::size_t(grid.cells[1]), nz = std::size_t(grid.cells[2]);
+          for (int ra = 0; ra < runs[0].count; ++ra)
+            for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
+              for (int rb = 0; rb < runs[1].count; ++rb)
+                for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b) {
+                  const std::size_t row = (std::size_t(a) * ny + std::size_t(b)) * nz;
+                  for (int rc = 0; rc < runs[2].count; ++rc) {
+                    const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb], runs[2].shift[rc]};
+                    const std::uint32_t begin = grid.cell_start[row + std::size_t(runs[2].first[rc])];
+                    const std::uint32_t end = grid.cell_start[row + std::size_t(runs[2].last[rc]) + 1];
+                    if (nearest_image)
+                      visit_run(std::true_type(), begin, end, shift);
+                    else
+                      visit_run(std::false_type(), begin, end, shift);
                   }
-                  if (nearest_image)
-                    for (int k = 0; k < 3; ++k)
-                      c.r[k] -= box.length[k] * std::nearbyint(c.r[k] / box.length[k]);
-                  on_candidate(thread, c);
                 }
-              });
         }
       }
     }
-    done(thread);
+    done(thread, compared, passed);
   }
 }
 

@@ -15,13 +15,11 @@ namespace pwcontact {
 namespace {
 
 // A pair the prefilters left: its indices i < j, r12 = c_j - c_i (minimum
-// image), and where the two forms are in the cell-ordered copies.
+// image), and the two forms (copied while they are in cache).
 struct Undecided {
   std::uint32_t i, j;
   double r[3];
-  const double* const* q1;  // the grid's q arrays, and the member's place in them
-  const double* const* q2;
-  std::uint32_t at1, at2;
+  double q1[6], q2[6];
 };
 
 // What one thread's share of the particles produced, and its buffers: the
@@ -61,8 +59,8 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
     const Undecided& u = t.undecided[at];
     for (int k = 0; k < 3; ++k) t.batch.r12(k)[at] = u.r[k];
     for (int k = 0; k < 6; ++k) {
-      t.batch.q1(k)[at] = u.q1[k][u.at1];
-      t.batch.q2(k)[at] = u.q2[k][u.at2];
+      t.batch.q1(k)[at] = u.q1[k];
+      t.batch.q2(k)[at] = u.q2[k];
     }
   }
   t.status.resize(n);
@@ -95,21 +93,20 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
   t.seconds_solve += omp_get_wtime() - compacted;
 }
 
-// One side of a candidate pair: its particle index and radii, and where its
-// form is (an array of the six q arrays, and the place in them).
+// One side of a candidate pair: its particle index, radii and form (six
+// contiguous numbers).
 struct Side {
   std::uint32_t index;
   double bounding, inscribed, sphere;
-  const double* const* q;
-  std::uint32_t at;
+  const double* q;
 };
 
-// The first prefilter, on every candidate: apart when the bounding spheres
-// scaled by the cutoff do not meet (most candidates: kept to a few
-// operations, before anything else about the pair is loaded).
+// The first prefilter: apart when the bounding spheres scaled by the cutoff
+// do not meet (most candidates: kept to a few operations, before anything
+// else about the pair is loaded; the cell search has already dropped the
+// pairs a coarse form of this test decides).
 inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double rr,
                                       double bounding_sum) {
-  ++mine.candidates;
   const double reach = cutoff * bounding_sum;
   if (rr < reach * reach) return false;
   ++mine.out;
@@ -146,8 +143,14 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
   const double sign = p_first ? 1 : -1;
   const Side& first = p_first ? p : o;
   const Side& second = p_first ? o : p;
-  mine.undecided.push_back({a, b, {sign * r[0], sign * r[1], sign * r[2]}, first.q, second.q,
-                            first.at, second.at});
+  Undecided& u = mine.undecided.emplace_back();
+  u.i = a;
+  u.j = b;
+  for (int k = 0; k < 3; ++k) u.r[k] = sign * r[k];
+  for (int k = 0; k < 6; ++k) {
+    u.q1[k] = first.q[k];
+    u.q2[k] = second.q[k];
+  }
   if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
 }
 
@@ -275,31 +278,23 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 
   // Candidates and prefilters; the undecided pairs solved chunk by chunk.
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
-  // Each grid's six q arrays, as pointers the undecided pairs refer to.
-  std::vector<std::array<const double*, 6>> grid_q_storage(lists.grids.size());
-  std::vector<const double* const*> grid_q(lists.grids.size());
-  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
-    for (int k = 0; k < 6; ++k) grid_q_storage[g][std::size_t(k)] = lists.grids[g].q[k].data();
-    grid_q[g] = grid_q_storage[g].data();
-  }
-  screen::search_candidates(
+  screen::search_candidates<true>(
       lists, box, threads, options.progress,
       [&](int thread, const screen::Candidate& c) {
         ThreadPairs& mine = per_thread[std::size_t(thread)];
-        const screen::ClassGrid& home = lists.grids[c.class_i];
-        const screen::ClassGrid& grid = lists.grids[c.class_j];
+        const screen::Member& i = *c.i;
+        const screen::Member& j = *c.j;
         const double rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
-        if (apart_by_bounding_spheres(mine, options.cutoff, rr,
-                                      home.bounding[c.at_i] + grid.bounding[c.at_j]))
-          return;
-        classify_near_pair(mine, options,
-                           {c.i, home.bounding[c.at_i], home.inscribed[c.at_i],
-                            home.sphere[c.at_i], grid_q[c.class_i], c.at_i},
-                           {c.j, grid.bounding[c.at_j], grid.inscribed[c.at_j],
-                            grid.sphere[c.at_j], grid_q[c.class_j], c.at_j},
-                           c.r, rr);
+        if (apart_by_bounding_spheres(mine, options.cutoff, rr, i.bounding + j.bounding)) return;
+        classify_near_pair(mine, options, {i.index, i.bounding, i.inscribed, i.sphere, i.q},
+                           {j.index, j.bounding, j.inscribed, j.sphere, j.q}, c.r, rr);
       },
-      [&](int thread) { solve_waiting(per_thread[std::size_t(thread)], options); });
+      [&](int thread, std::size_t compared, std::size_t passed) {
+        ThreadPairs& mine = per_thread[std::size_t(thread)];
+        mine.candidates += compared;
+        mine.out += compared - passed;  // by the coarse form of the bounding test
+        solve_waiting(mine, options);
+      });
   if (options.progress) options.progress(1);
   finish(per_thread, options, threads, t1, report, out);
   return report;
@@ -325,9 +320,6 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
   report.threads = threads;
   const double t1 = omp_get_wtime();
-  std::array<const double*, 6> q_storage;
-  for (int k = 0; k < 6; ++k) q_storage[std::size_t(k)] = particles.q(k).data();
-  const double* const* q = q_storage.data();
   const std::vector<double>& bounding = particles.bounding_radius();
   const std::vector<double>& inscribed = particles.inscribed_radius();
   const std::vector<double>& sphere = particles.sphere_radius();
@@ -344,9 +336,15 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
         if (box.periodic) r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
       }
       const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+      ++mine.candidates;
       if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) continue;
-      classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], q, i},
-                         {j, bounding[j], inscribed[j], sphere[j], q, j}, r, rr);
+      double qi[6], qj[6];
+      for (int a = 0; a < 6; ++a) {
+        qi[a] = particles.q(a)[i];
+        qj[a] = particles.q(a)[j];
+      }
+      classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], qi},
+                         {j, bounding[j], inscribed[j], sphere[j], qj}, r, rr);
     }
     solve_waiting(mine, options);
   }
@@ -364,17 +362,17 @@ void for_each_candidate_pair(
   check(particles, box, options);
   threads = threads > 0 ? threads : omp_get_max_threads();
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
-  screen::search_candidates(
+  screen::search_candidates<false>(
       lists, box, threads, {},
       [&](int thread, const screen::Candidate& c) {
-        if (c.i < c.j) {
-          visit(thread, c.i, c.j, c.r);
+        if (c.i->index < c.j->index) {
+          visit(thread, c.i->index, c.j->index, c.r);
         } else {
           const double r[3] = {-c.r[0], -c.r[1], -c.r[2]};
-          visit(thread, c.j, c.i, r);
+          visit(thread, c.j->index, c.i->index, r);
         }
       },
-      [](int) {});
+      [](int, std::size_t, std::size_t) {});
 }
 
 }  // namespace pwcontact
