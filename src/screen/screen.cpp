@@ -1,6 +1,7 @@
 // screen_pairs: cell lists, prefilters, compaction, the batch path, and the
 // pairs found in a deterministic order (see screen.hpp).
 #include <omp.h>
+#include <parallel/algorithm>
 
 #include <algorithm>
 #include <cmath>
@@ -222,7 +223,8 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
     std::vector<std::pair<std::uint64_t, double>> found;
     for (const ThreadPairs& t : per_thread)
       for (std::size_t k = 0; k < t.found.size(); ++k) found.push_back({t.found[k], t.found_mu2[k]});
-    std::sort(found.begin(), found.end());
+    __gnu_parallel::sort(found.begin(), found.end(), std::less<>(),
+                         __gnu_parallel::multiway_mergesort_tag(threads));
     // A pair listed twice (candidate lists) is kept once.
     found.erase(std::unique(found.begin(), found.end(),
                             [](const auto& x, const auto& y) { return x.first == y.first; }),
@@ -244,7 +246,8 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
       found.insert(found.end(), t.found.begin(), t.found.end());
       std::vector<std::uint64_t>().swap(t.found);
     }
-    std::sort(found.begin(), found.end());
+    __gnu_parallel::sort(found.begin(), found.end(), std::less<>(),
+                         __gnu_parallel::multiway_mergesort_tag(threads));
     found.erase(std::unique(found.begin(), found.end()), found.end());
     out.i.resize(found.size());
     out.j.resize(found.size());
