@@ -86,7 +86,7 @@ PairBatch<double> pw85_family() {
 }
 
 SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, double max_aspect,
-                             int threads, const std::function<void(double fraction)>& progress) {
+                             bool identical_shapes, int threads, const std::function<void(double fraction)>& progress) {
   constexpr std::size_t block = 4096;
   const double volume = 4.0 / 3.0 * 3.14159265358979323846 * 0.125;
   const double length = std::cbrt(double(n) * volume / packing);
@@ -99,13 +99,13 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
   for (std::size_t b = 0; b < blocks; ++b) {
     std::mt19937_64 engine(seed * 0x9E3779B97F4A7C15ull + b);
     for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) {
-      const double aspect = std::exp(log_aspect * (2 * uniform01(engine) - 1));
+      const double draw = uniform01(engine);  // drawn either way: the same centres
+      const double aspect = identical_shapes ? max_aspect : std::exp(log_aspect * (2 * draw - 1));
       const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
       const std::array<double, 3> centre = {length * uniform01(engine), length * uniform01(engine),
                                             length * uniform01(engine)};
-      scene.particles.set(i, centre,
-                          quadratic_form_from_quaternion({equatorial, equatorial, equatorial * aspect},
-                                                         random_quaternion(engine)));
+      scene.particles.set_axes(i, centre, {equatorial, equatorial, equatorial * aspect},
+                               random_quaternion(engine));
     }
     if (progress && omp_get_thread_num() == 0) {
       std::size_t now;

@@ -4,6 +4,7 @@
 // pairs across the periodic boundary). Pairs within 1e-9 of the cutoff
 // (|mu^2 - cutoff^2| <= 1e-9 cutoff^2, the overlap answers' documented
 // band) may differ; they are counted and printed.
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -162,8 +163,9 @@ Comparison expect_same_pairs(const SceneSpec& spec, double cutoff, const std::st
   ScreenedPairs got;
   const ScreenReport report = screen(s, box, cutoff, got);
   EXPECT_EQ(report.particles, spec.particles);
-  EXPECT_EQ(report.candidate_pairs,
-            report.decided_out + report.decided_in + report.decided_spheres + report.solved)
+  EXPECT_EQ(report.candidate_pairs, report.decided_out + report.decided_in +
+                                        report.decided_spheres + report.decided_same_form +
+                                        report.solved)
       << what;
   EXPECT_EQ(report.found, got.size()) << what;
   EXPECT_EQ(report.invalid, 0u) << what;
@@ -248,6 +250,71 @@ TEST(Screen, PairsOfSpheresAreDecidedInClosedFormWithoutASolve) {
   }
   EXPECT_LE(worst, 1e-14) << "a few roundings of |r|^2 / (a_i + a_j)^2";
   compare(s, box, 1.2, with_mu2, "spheres, cutoff 1.2");
+}
+
+TEST(Screen, IdenticalShapesAreDetectedAndMatchTheBruteForce) {
+  // One shape (semi-axes 0.3, 0.3, 0.9), random orientations: one size class
+  // and one reach for every pair; a scene of varied shapes is not taken for one.
+  const SceneSpec spec{1500, 3, 3, 0.3, 0.3, 10.0, true, 21};
+  ScreenedPairs got;
+  const ScreenReport report = screen(make_scene(spec), box_of(spec), 1, got);
+  EXPECT_TRUE(report.identical_shapes);
+  EXPECT_EQ(report.size_classes, 1u);
+  const Comparison c = expect_same_pairs(spec, 1, "identical shapes, periodic");
+  EXPECT_GT(c.expected, 200u);
+  expect_same_pairs({1500, 3, 3, 0.3, 0.3, 12.0, false, 22}, 1.2, "identical shapes, open, 1.2");
+  ScreenedPairs varied;
+  EXPECT_FALSE(screen(make_scene({500, 0.5, 2, 0.3, 0.3, 10.0, true, 23}), box_of(spec), 1, varied)
+                   .identical_shapes);
+}
+
+// Identical, aligned ellipsoids (one Q for all) of the given semi-axes,
+// random centres in a periodic box.
+ParticleStore aligned_scene(const std::array<double, 3>& semi_axes, std::size_t n, double box,
+                            std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore s;
+  for (std::size_t k = 0; k < n; ++k)
+    s.add_axes({box * unit(engine), box * unit(engine), box * unit(engine)}, semi_axes,
+               {0.8, 0.1, -0.5, 0.3});
+  return s;
+}
+
+TEST(Screen, PairsOfOneFormAreDecidedInClosedFormWithoutASolve) {
+  // One shape, one orientation: mu^2 = r^T Q^-1 r / 4 (theory eqs. 10, 11),
+  // no solve; the same pairs as the brute force, and with mu^2 within 1e-14
+  // of the reference's (Cholesky on cond(Q) = 36: a few roundings times 36).
+  const Box box = Box::periodic_box(9, 9, 9);
+  const ParticleStore s = aligned_scene({0.2, 0.5, 1.2}, 1200, 9, 31);
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, box, 1, got);
+  EXPECT_EQ(report.solved, 0u);
+  EXPECT_GT(report.decided_same_form, 300u);
+  const Comparison c = compare(s, box, 1, got, "one form");
+  EXPECT_GT(c.expected, 200u);
+  ScreenedPairs with_mu2;
+  screen(s, box, 1.3, with_mu2, true);
+  double worst = 0;
+  for (std::size_t k = 0; k < with_mu2.size(); ++k) {
+    const double exact = reference_mu2(s, box, with_mu2.i[k], with_mu2.j[k]);
+    worst = std::max(worst, std::abs(with_mu2.mu2[k] - exact) / exact);
+  }
+  std::printf("[ measured ] one form: max relative error of mu^2 %.3g\n", worst);
+  EXPECT_LE(worst, 1e-14);
+  compare(s, box, 1.3, with_mu2, "one form, cutoff 1.3");
+}
+
+TEST(Screen, PairsOfOneIllConditionedFormAreSolvedNotTakenInClosedForm) {
+  // Needles of aspect 150 (cond(Q) = 2.25e4 > 1e4): the closed form's
+  // rounding would grow with cond(Q), so they go to the batch path.
+  const Box box = Box::periodic_box(6.5, 6.5, 6.5);
+  const ParticleStore s = aligned_scene({0.01, 0.01, 1.5}, 1000, 6.5, 32);
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, box, 1, got);
+  EXPECT_EQ(report.decided_same_form, 0u);
+  EXPECT_GT(report.solved, 100u);
+  compare(s, box, 1, got, "one ill-conditioned form");
 }
 
 TEST(Screen, ACandidateListOfOnesOwnGivesTheSamePairsAsTheCellLists) {
@@ -345,6 +412,31 @@ TEST(Screen, RadiiBoundTheEllipsoid) {
   EXPECT_LE(s.bounding_radius()[0], 3.0 * (1 + 1e-13));
   EXPECT_LE(s.inscribed_radius()[0], 0.5);
   EXPECT_GE(s.inscribed_radius()[0], 0.5 * (1 - 1e-12));
+}
+
+TEST(Screen, RadiiFromSemiAxesBoundTheStoredFormsEigenvalues) {
+  // add_axes takes the radii from the semi-axes (no eigensolver): they must
+  // bound the form actually stored, whose eigenvalues (long double Eigen, an
+  // independent computation) differ from a^2 by its rounding. Aspect ratios
+  // to 1e4, random rotations.
+  std::mt19937_64 engine(41);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  ParticleStore s;
+  for (int k = 0; k < 2000; ++k) {
+    const std::array<double, 3> axes = {std::pow(10.0, 4 * unit(engine) - 2),
+                                        std::pow(10.0, 4 * unit(engine) - 2),
+                                        std::pow(10.0, 4 * unit(engine) - 2)};
+    s.add_axes({0, 0, 0}, axes, {normal(engine), normal(engine), normal(engine), normal(engine)});
+    const std::array<double, 6> q = form(s, s.size() - 1);
+    Eigen::Matrix<long double, 3, 3> m;
+    m << q[0], q[1], q[2], q[1], q[3], q[4], q[2], q[4], q[5];
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<long double, 3, 3>> solver(
+        m, Eigen::EigenvaluesOnly);
+    const long double smallest = solver.eigenvalues()[0], largest = solver.eigenvalues()[2];
+    ASSERT_GE((long double)s.bounding_radius().back(), std::sqrt(largest)) << k;
+    ASSERT_LE((long double)s.inscribed_radius().back(), std::sqrt(smallest)) << k;
+  }
 }
 
 TEST(Screen, AnEmptySceneAndASingleParticleFindNothing) {

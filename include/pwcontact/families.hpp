@@ -36,7 +36,9 @@ PairBatch<float> to_float(const PairBatch<double>& pairs);
 // orientations uniform, aspect ratios (polar over equatorial radius)
 // log-uniform in [1 / max_aspect, max_aspect], each with the volume of a
 // sphere of radius 0.5, the box sized for the packing fraction (total
-// spheroid volume over box volume). Each block of particles draws from its
+// spheroid volume over box volume). identical_shapes: every spheroid
+// prolate with aspect ratio max_aspect instead (the same shape, only the
+// orientation differs; the same centres). Each block of particles draws from its
 // own generator seeded by (seed, block): the same scene on every platform
 // and for every thread count.
 struct SpheroidScene {
@@ -44,7 +46,8 @@ struct SpheroidScene {
   Box box;
 };
 SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing = 0.3,
-                             double max_aspect = 3, int threads = 0,
+                             double max_aspect = 3, bool identical_shapes = false,
+                             int threads = 0,
                              const std::function<void(double fraction)>& progress = {});
 
 }  // namespace pwcontact

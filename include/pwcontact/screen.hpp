@@ -50,14 +50,18 @@ class ParticleStore {
   // Q must be finite and positive definite (std::invalid_argument naming the
   // particle otherwise): a scene with an invalid particle has no answer.
   void add(const std::array<double, 3>& centre, const std::array<double, 6>& q);
-  // Semi-axes along the body axes rotated by the unit quaternion (w, x, y, z),
-  // converted to Q once (quadratic_form_from_quaternion).
+  // Semi-axes (positive, finite) along the body axes rotated by the unit
+  // quaternion (w, x, y, z), converted to Q once (quadratic_form_from_quaternion).
+  // Cheaper than add: the radii come from the semi-axes, with no eigensolver.
   void add_axes(const std::array<double, 3>& centre, const std::array<double, 3>& semi_axes,
                 const std::array<double, 4>& quaternion);
-  // For filling in parallel: resize(n), then set(i, ...) for every i (from
-  // any thread, each i once), as add would (and with the same checks).
+  // For filling in parallel: resize(n), then set(i, ...) or set_axes(i, ...)
+  // for every i (from any thread, each i once), as add and add_axes would
+  // (and with the same checks).
   void resize(std::size_t n);
   void set(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q);
+  void set_axes(std::size_t i, const std::array<double, 3>& centre,
+                const std::array<double, 3>& semi_axes, const std::array<double, 4>& quaternion);
 
   const std::vector<double>& centre(int k) const { return centre_[k]; }
   const std::vector<double>& q(int k) const { return q_[k]; }
@@ -68,6 +72,10 @@ class ParticleStore {
   const std::vector<double>& sphere_radius() const { return sphere_; }
 
  private:
+  // Stores particle i with the smallest and largest eigenvalues of its Q
+  // (each within a few eps |Q|), rounding the radii to the safe side.
+  void store(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q,
+             double smallest, double largest);
   std::vector<double> centre_[3], q_[6], bounding_, inscribed_, sphere_;
 };
 
@@ -94,10 +102,14 @@ struct ScreenReport {
   std::size_t particles = 0;
   int threads = 0;                     // the thread count used
   std::size_t size_classes = 0;        // cell lists built (one per class of bounding radius)
+  bool identical_shapes = false;       // every particle the same bounding and inscribed radius
+                                       // (to 1e-12): one reach for every pair in the search
   std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
   std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
   std::size_t decided_in = 0;          // |r| < cutoff (rho_i + rho_j): found, no solve
   std::size_t decided_spheres = 0;     // pairs of spheres left by those: closed form, no solve
+  std::size_t decided_same_form = 0;   // pairs of one form Q (same shape and orientation) left:
+                                       // mu^2 = r^T Q^-1 r / 4, no solve (cond(Q) <= 1e4)
   std::size_t solved = 0;              // pairs given to the batch path
   std::size_t invalid = 0;             // solved pairs with an invalid status (not found)
   std::size_t found = 0;

@@ -25,6 +25,7 @@ struct DemoOptions {
   std::uint64_t seed = default_seed;
   double packing = 0.3;     // volume of the spheroids over the box's
   double max_aspect = 3;    // aspect ratios log-uniform in [1 / max, max]
+  bool identical_shapes = false;  // every aspect ratio max_aspect instead
   double cutoff = 1;
   int threads = 0;
 };
@@ -58,6 +59,10 @@ OptionParser demo_parser(DemoOptions& options) {
                      options.max_aspect = parse_positive_number(value);
                      if (!(options.max_aspect >= 1)) throw std::invalid_argument("must be >= 1");
                    });
+  parser.add_flag({"--identical"},
+                  "identical shapes: every spheroid prolate with aspect ratio A (only the "
+                  "orientations differ; the same centres)",
+                  [&options] { options.identical_shapes = true; });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
   add_threads_option(parser, options.threads, "the pairs");
@@ -107,14 +112,20 @@ ExitStatus run_demo(const Arguments& arguments) {
   {
     ProgressBar bar("generating the scene");
     scene = spheroid_scene(options.ellipsoids, options.seed, options.packing, options.max_aspect,
-                           threads, [&bar](double fraction) { bar.update(fraction); });
+                           options.identical_shapes, threads, [&bar](double fraction) { bar.update(fraction); });
   }
   const double generate_seconds = generating.seconds();
   const ParticleStore& particles = scene.particles;
   const double box = scene.box.length[0];
-  std::printf("pwcontact demo: %zu spheroids (aspect ratios 1/%g to %g, packing fraction %g), "
+  char shapes[96];
+  if (options.identical_shapes)
+    std::snprintf(shapes, sizeof shapes, "identical shapes, aspect ratio %g", options.max_aspect);
+  else
+    std::snprintf(shapes, sizeof shapes, "aspect ratios 1/%g to %g", options.max_aspect,
+                  options.max_aspect);
+  std::printf("pwcontact demo: %zu spheroids (%s, packing fraction %g), "
               "periodic box %.4g, seed %llu (generated in %s)\n",
-              particles.size(), options.max_aspect, options.max_aspect, options.packing, box,
+              particles.size(), shapes, options.packing, box,
               static_cast<unsigned long long>(options.seed),
               describe_seconds(generate_seconds).c_str());
   std::fflush(stdout);

@@ -41,14 +41,25 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   lists.size_class.assign(n, 0);
   if (n == 0) return lists;
 
-  double largest = 0;
+  const std::vector<double>& inscribed = particles.inscribed_radius();
+  double largest = 0, smallest = std::numeric_limits<double>::infinity();
+  double inscribed_low = smallest, inscribed_high = 0;
   std::array<double, 3> low, high;
   for (int k = 0; k < 3; ++k) {
     low[k] = std::numeric_limits<double>::infinity();
     high[k] = -low[k];
   }
-#pragma omp parallel for num_threads(threads) reduction(max : largest)
-  for (std::size_t i = 0; i < n; ++i) largest = std::max(largest, bounding[i]);
+#pragma omp parallel for num_threads(threads) reduction(max : largest, inscribed_high) \
+    reduction(min : smallest, inscribed_low)
+  for (std::size_t i = 0; i < n; ++i) {
+    largest = std::max(largest, bounding[i]);
+    smallest = std::min(smallest, bounding[i]);
+    inscribed_high = std::max(inscribed_high, inscribed[i]);
+    inscribed_low = std::min(inscribed_low, inscribed[i]);
+  }
+  // Identical shapes (or at least radii): one reach for every pair.
+  lists.identical_shapes = largest - smallest <= 1e-12 * largest &&
+                           inscribed_high - inscribed_low <= 1e-12 * inscribed_high;
   for (int k = 0; k < 3; ++k) {
     const std::vector<double>& c = particles.centre(k);
     double lo = low[k], hi = high[k];
@@ -68,6 +79,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   for (int k = 0; k < 3; ++k)
     scale = std::max({scale, std::abs(low[k]), std::abs(high[k]), box.length[k]});
   lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
+  lists.largest_reach = cutoff * largest;
 
   // Classes, then only the non-empty ones, largest radii first.
   std::vector<std::uint8_t> raw(n);
@@ -157,7 +169,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     coarse.reach = cutoff * bounding[i];
     for (int k = 0; k < 6; ++k) member.q[k] = particles.q(k)[i];
     member.bounding = bounding[i];
-    member.inscribed = particles.inscribed_radius()[i];
+    member.inscribed = inscribed[i];
     member.sphere = particles.sphere_radius()[i];
     member.index = std::uint32_t(i);
   }

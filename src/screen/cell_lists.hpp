@@ -76,6 +76,10 @@ struct CellLists {
   // be from the exact one, as a length: it lets a pair through when its
   // distance is within this of the reach, and the exact test decides.
   double slack = 0;
+  double largest_reach = 0;  // cutoff * the largest bounding radius
+  // Every particle the same bounding and inscribed radius (to 1e-12): the
+  // coarse test then compares every pair with one reach, read from no member.
+  bool identical_shapes = false;
 
   // A coordinate wrapped into [0, L] when periodic (as given otherwise).
   double wrapped(int k, double x) const {
@@ -183,10 +187,10 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
           const bool nearest_image =
               runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
           // The members of one run of cells along z: contiguous.
-          // (nearest_image a compile-time constant: the common case keeps a
-          // tight loop.)
-          auto visit_run = [&](auto nearest_image, std::uint32_t begin, std::uint32_t end,
-                               const int (&shift)[3]) {
+          // (nearest_image and one_reach compile-time constants: the common
+          // cases keep a tight loop.)
+          auto visit_run = [&](auto nearest_image, auto one_reach, std::uint32_t begin,
+                               std::uint32_t end, const int (&shift)[3]) {
             if (g == own) begin = std::max(begin, std::uint32_t(at + 1));
             if (begin >= end) return;
             compared += end - begin;
@@ -201,7 +205,8 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
                 if (nearest_image)
                   for (int k = 0; k < 3; ++k)
                     d[k] -= box.length[k] * std::nearbyint(d[k] / box.length[k]);
-                const double limit = reach_i + coarse[m].reach;
+                const double limit = one_reach ? reach_i + lists.largest_reach
+                                               : reach_i + coarse[m].reach;
                 if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
               }
               ++passed;
@@ -229,9 +234,11 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
                     const std::uint32_t begin = grid.cell_start[row + std::size_t(runs[2].first[rc])];
                     const std::uint32_t end = grid.cell_start[row + std::size_t(runs[2].last[rc]) + 1];
                     if (nearest_image)
-                      visit_run(std::true_type(), begin, end, shift);
+                      visit_run(std::true_type(), std::false_type(), begin, end, shift);
+                    else if (lists.identical_shapes)
+                      visit_run(std::false_type(), std::true_type(), begin, end, shift);
                     else
-                      visit_run(std::false_type(), begin, end, shift);
+                      visit_run(std::false_type(), std::false_type(), begin, end, shift);
                   }
                 }
         }

@@ -2,6 +2,7 @@
 // inscribed radii the screening prefilters use.
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -50,24 +51,60 @@ void ParticleStore::add(const std::array<double, 3>& centre, const std::array<do
   }
 }
 
+namespace {
+
+std::string particle_name(std::size_t i) { return "ParticleStore: particle " + std::to_string(i); }
+
+void check_centre(std::size_t i, const std::array<double, 3>& centre) {
+  for (double c : centre)
+    if (!std::isfinite(c)) throw std::invalid_argument(particle_name(i) + ": centre is not finite");
+}
+
+}  // namespace
+
 void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
                         const std::array<double, 6>& q) {
-  const std::string which = "ParticleStore: particle " + std::to_string(i);
-  for (double c : centre)
-    if (!std::isfinite(c)) throw std::invalid_argument(which + ": centre is not finite");
+  check_centre(i, centre);
   for (double v : q)
-    if (!std::isfinite(v)) throw std::invalid_argument(which + ": Q is not finite");
+    if (!std::isfinite(v)) throw std::invalid_argument(particle_name(i) + ": Q is not finite");
   Eigen::Matrix3d m;
   m << q[0], q[1], q[2], q[1], q[3], q[4], q[2], q[4], q[5];
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m, Eigen::EigenvaluesOnly);
-  const double smallest = solver.eigenvalues()[0], largest = solver.eigenvalues()[2];
   // The eigenvalues of a symmetric 3x3 matrix computed by Eigen's QR
-  // iteration err by a few eps |Q| (backward stable); 64 eps |Q| rounds the
-  // radii outwards (bounding) and inwards (inscribed) beyond that, so that
-  // both prefilters stay on the safe side.
+  // iteration err by a few eps |Q| (backward stable); store() rounds the
+  // radii beyond that.
+  store(i, centre, q, solver.eigenvalues()[0], solver.eigenvalues()[2]);
+}
+
+void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
+                             const std::array<double, 3>& semi_axes,
+                             const std::array<double, 4>& quaternion) {
+  check_centre(i, centre);
+  for (double a : semi_axes)
+    if (!(a > 0) || !std::isfinite(a))
+      throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite");
+  // Equal semi-axes: a sphere whatever the rotation, stored as exactly a^2 I
+  // (the rotated form would carry rounding off the diagonal), so that pairs
+  // of spheres are recognised and decided in closed form.
+  const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
+  const QuadraticForm q = equal ? sphere(semi_axes[0])
+                                : quadratic_form_from_quaternion(semi_axes, quaternion);
+  // No eigensolver: the stored Q is R diag(a^2) R^T rounded, a few eps a_max^2
+  // from the exact form in every entry, so by Weyl's inequality its
+  // eigenvalues are within a few eps a_max^2 of the squared semi-axes, which
+  // store() rounds beyond.
+  const auto [smallest, largest] = std::minmax({semi_axes[0], semi_axes[1], semi_axes[2]});
+  store(i, centre, q, smallest * smallest, largest * largest);
+}
+
+void ParticleStore::store(std::size_t i, const std::array<double, 3>& centre,
+                          const std::array<double, 6>& q, double smallest, double largest) {
+  // 64 eps |Q| rounds the radii outwards (bounding) and inwards (inscribed)
+  // beyond the few eps |Q| by which the eigenvalues may err, so that both
+  // prefilters stay on the safe side.
   const double slack = 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
   if (!(smallest > slack))
-    throw std::invalid_argument(which + ": Q is not positive definite (smallest eigenvalue " +
+    throw std::invalid_argument(particle_name(i) + ": Q is not positive definite (smallest eigenvalue " +
                                 std::to_string(smallest) + ")");
   const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
   for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
@@ -81,12 +118,14 @@ void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
 void ParticleStore::add_axes(const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
-  // Equal semi-axes: a sphere whatever the rotation, stored as exactly a^2 I
-  // (the rotated form would carry rounding off the diagonal), so that pairs
-  // of spheres are recognised and decided in closed form.
-  const QuadraticForm rotated = quadratic_form_from_quaternion(semi_axes, quaternion);  // checks it
-  const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
-  add(centre, equal ? sphere(semi_axes[0]) : rotated);
+  const std::size_t i = size();
+  resize(i + 1);
+  try {
+    set_axes(i, centre, semi_axes, quaternion);
+  } catch (...) {
+    resize(i);
+    throw;
+  }
 }
 
 }  // namespace pwcontact

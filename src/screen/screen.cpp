@@ -31,7 +31,8 @@ struct ThreadPairs {
   std::vector<Undecided> undecided;  // waiting for the next chunk's solve
   std::vector<std::uint64_t> found;  // i << 32 | j
   std::vector<double> found_mu2;     // with_mu2
-  std::size_t candidates = 0, out = 0, in = 0, spheres = 0, solved = 0, invalid = 0, fallbacks = 0;
+  std::size_t candidates = 0, out = 0, in = 0, spheres = 0, same_form = 0, solved = 0, invalid = 0,
+              fallbacks = 0;
   double evaluations = 0;  // summed over the solved pairs
   double seconds_compaction = 0, seconds_solve = 0;
   BatchReport last;  // of the last chunk solved (settings as resolved)
@@ -114,24 +115,57 @@ inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double r
   return true;
 }
 
+// Whether two particles have the same form Q (the same shape and
+// orientation) that is well enough conditioned for the closed form below:
+// bounding over inscribed radius at most 100, so cond(Q) <= 1e4 and
+// r^T Q^-1 r by Cholesky within 1e4 * a few eps (1e-11) relatively.
+inline bool same_moderate_form(const Side& p, const Side& o) {
+  for (int k = 0; k < 6; ++k)
+    if (p.q[k] != o.q[k]) return false;
+  return p.bounding <= 100 * p.inscribed;
+}
+
+// r^T Q^-1 r by the Cholesky factor Q = L L^T: |L^-1 r|^2.
+inline double inverse_form_value(const double q[6], const double r[3]) {
+  const double l00 = std::sqrt(q[0]);
+  const double l10 = q[1] / l00, l20 = q[2] / l00;
+  const double l11 = std::sqrt(q[3] - l10 * l10);
+  const double l21 = (q[4] - l20 * l10) / l11;
+  const double l22 = std::sqrt(q[5] - l20 * l20 - l21 * l21);
+  const double y0 = r[0] / l00;
+  const double y1 = (r[1] - l10 * y0) / l11;
+  const double y2 = (r[2] - l20 * y0 - l21 * y1) / l22;
+  return y0 * y0 + y1 * y1 + y2 * y2;
+}
+
 // The pair (p, o) with r = c_o - c_p that the bounding spheres left: pairs of
-// spheres in closed form; overlapping by the inscribed spheres; the rest
-// waits for the next chunk's solve.
+// spheres, and pairs of one form, in closed form; overlapping by the
+// inscribed spheres; the rest waits for the next chunk's solve.
 inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, const Side& p,
                                const Side& o, const double r[3], double rr) {
   const double cutoff = options.cutoff;
   const bool p_first = p.index < o.index;
   const std::uint32_t a = p_first ? p.index : o.index, b = p_first ? o.index : p.index;
-  if (p.sphere > 0 && o.sphere > 0) {
-    // Two spheres: mu = |r| / (a_i + a_j) (Q(lambda) is then a multiple of
-    // I), to a few roundings.
-    const double sum = p.sphere + o.sphere;
-    const double mu2 = rr / (sum * sum);
-    ++mine.spheres;
+  auto decide = [&](double mu2) {
     if (mu2 < cutoff * cutoff) {
       mine.found.push_back(pair_key(a, b));
       if (options.with_mu2) mine.found_mu2.push_back(mu2);
     }
+  };
+  if (p.sphere > 0 && o.sphere > 0) {
+    // Two spheres: mu = |r| / (a_i + a_j) (Q(lambda) is then a multiple of
+    // I), to a few roundings.
+    const double sum = p.sphere + o.sphere;
+    ++mine.spheres;
+    decide(rr / (sum * sum));
+    return;
+  }
+  if (same_moderate_form(p, o)) {
+    // Q1 = Q2 = Q: Q(lambda) = Q in eq. (10), so f(lambda) = lambda (1 -
+    // lambda) r^T Q^-1 r by eq. (11), largest at lambda = 1/2 (eq. 6). A scene
+    // of identical, aligned ellipsoids is an affine image of one of spheres.
+    ++mine.same_form;
+    decide(inverse_form_value(p.q, r) / 4);
     return;
   }
   const double inner = cutoff * (p.inscribed + o.inscribed);
@@ -194,6 +228,7 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
     report.decided_out += t.out;
     report.decided_in += t.in;
     report.decided_spheres += t.spheres;
+    report.decided_same_form += t.same_form;
     report.solved += t.solved;
     report.invalid += t.invalid;
     report.batch.fallbacks += t.fallbacks;
@@ -276,6 +311,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   double t0 = omp_get_wtime();
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
   report.size_classes = lists.grids.size();
+  report.identical_shapes = lists.identical_shapes;
   double t1 = omp_get_wtime();
   report.seconds_cells = t1 - t0;
 
