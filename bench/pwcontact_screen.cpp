@@ -4,6 +4,11 @@
 //   screen/spheroids/n:N/threads:T       screen_pairs, every stage included
 //                                        (cell lists, candidates and prefilters,
 //                                        compaction, solve, sorting)
+//   screen/identical/n:N/threads:T       the same centres, every spheroid of
+//                                        one shape (aspect ratio 3, random
+//                                        orientations): identical shapes
+//   screen/spheres/n:N/threads:T         the same centres, spheres of radius
+//                                        0.5: closed form, no solve
 //   brent_pipeline/spheroids/n:N/threads:T  the same cell lists with
 //                                        brent_baseline on every candidate pair
 //                                        (no prefilter, no batch path), then the
@@ -35,10 +40,18 @@ using pwcontact::SpheroidScene;
 
 constexpr std::uint64_t scene_seed = 1;
 
-const SpheroidScene& scene(std::size_t n) {
-  static std::map<std::size_t, SpheroidScene> scenes;
-  auto found = scenes.find(n);
-  if (found == scenes.end()) found = scenes.emplace(n, pwcontact::spheroid_scene(n, scene_seed)).first;
+// The scenes by kind: "spheroids" (the demo's), "identical", "spheres".
+const SpheroidScene& scene(const std::string& kind, std::size_t n) {
+  static std::map<std::pair<std::string, std::size_t>, SpheroidScene> scenes;
+  auto found = scenes.find({kind, n});
+  if (found == scenes.end()) {
+    const double max_aspect = kind == "spheres" ? 1 : 3;
+    found = scenes
+                .emplace(std::make_pair(kind, n),
+                         pwcontact::spheroid_scene(n, scene_seed, 0.3, max_aspect,
+                                                   kind == "identical"))
+                .first;
+  }
   return found->second;
 }
 
@@ -48,8 +61,9 @@ std::map<std::string, std::vector<double>>& seconds_by_name() {
   return seconds;
 }
 
-std::string name_of(const char* path, std::size_t n, int threads) {
-  return std::string(path) + "/spheroids/n:" + std::to_string(n) + "/threads:" +
+std::string name_of(const char* path, std::size_t n, int threads,
+                    const std::string& kind = "spheroids") {
+  return std::string(path) + "/" + kind + "/n:" + std::to_string(n) + "/threads:" +
          std::to_string(threads);
 }
 
@@ -57,8 +71,9 @@ double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-void screen_benchmark(benchmark::State& state, std::size_t n, int threads) {
-  const SpheroidScene& s = scene(n);
+void screen_benchmark(benchmark::State& state, const std::string& kind, std::size_t n,
+                      int threads) {
+  const SpheroidScene& s = scene(kind, n);
   ScreenOptions options;
   options.threads = threads;
   ScreenedPairs pairs;
@@ -68,12 +83,13 @@ void screen_benchmark(benchmark::State& state, std::size_t n, int threads) {
     report = pwcontact::screen_pairs(s.particles, s.box, options, pairs);
     const double seconds = now() - start;
     state.SetIterationTime(seconds);
-    seconds_by_name()[name_of("screen", n, threads)].push_back(seconds);
+    seconds_by_name()[name_of("screen", n, threads, kind)].push_back(seconds);
   }
   state.counters["ns_per_particle"] = benchmark::Counter(
       double(n), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
   state.counters["candidates"] = double(report.candidate_pairs);
   state.counters["solved"] = double(report.solved);
+  state.counters["closed_form"] = double(report.decided_spheres + report.decided_same_form);
   state.counters["found"] = double(report.found);
   state.counters["s_cells"] = report.seconds_cells;
   state.counters["s_candidates"] = report.seconds_candidates;
@@ -86,7 +102,7 @@ void screen_benchmark(benchmark::State& state, std::size_t n, int threads) {
 // mu^2 < 1 kept and sorted: what the pipeline costs without the prefilters
 // and the batch path.
 void brent_pipeline_benchmark(benchmark::State& state, std::size_t n, int threads) {
-  const SpheroidScene& s = scene(n);
+  const SpheroidScene& s = scene("spheroids", n);
   std::size_t found_count = 0, candidates = 0;
   for (auto _ : state) {
     const double start = now();
@@ -165,10 +181,15 @@ int main(int argc, char** argv) {
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   for (std::size_t n : {100000, 1000000, 4000000})
     for (int threads : {1, 2})
-      benchmark::RegisterBenchmark(name_of("screen", n, threads).c_str(), screen_benchmark, n,
-                                   threads)
+      benchmark::RegisterBenchmark(name_of("screen", n, threads).c_str(), screen_benchmark,
+                                   std::string("spheroids"), n, threads)
           ->UseManualTime()
           ->Unit(benchmark::kMillisecond);
+  for (const char* kind : {"identical", "spheres"})
+    benchmark::RegisterBenchmark(name_of("screen", 1000000, 2, kind).c_str(), screen_benchmark,
+                                 std::string(kind), std::size_t(1000000), 2)
+        ->UseManualTime()
+        ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark(name_of("brent_pipeline", 100000, 2).c_str(),
                                brent_pipeline_benchmark, std::size_t(100000), 2)
       ->UseManualTime()

@@ -106,6 +106,8 @@ struct ScreenReport {
                                        // (to 1e-12): one reach for every pair in the search
   std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
   std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
+  std::size_t decided_out_by_projection = 0;  // left by that, apart by a separating plane
+                                              // normal to r12, no solve
   std::size_t decided_in = 0;          // |r| < cutoff (rho_i + rho_j): found, no solve
   std::size_t decided_spheres = 0;     // pairs of spheres left by those: closed form, no solve
   std::size_t decided_same_form = 0;   // pairs of one form Q (same shape and orientation) left:

@@ -35,7 +35,8 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
       text, sizeof text,
       "screen: %zu ellipsoids, %s, cutoff %g, threads %d\n"
       "  cell lists: %zu size class%s%s\n"
-      "  candidate pairs %zu: %zu apart by the bounding spheres, %zu overlapping by the "
+      "  candidate pairs %zu: %zu apart by the bounding spheres, %zu apart by their projections "
+      "on r12, %zu overlapping by the "
       "inscribed spheres, %zu pairs of spheres and %zu of one form (same shape and orientation) "
       "in closed form, %zu solved by the batch path "
       "(%s, %s, mean evaluations %.2f, fallbacks %zu, invalid %zu)\n"
@@ -45,7 +46,7 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
       "  rates: %s ellipsoids, %s candidate pairs\n",
       r.particles, where, cutoff, r.threads, r.size_classes, r.size_classes == 1 ? "" : "es",
       r.identical_shapes ? " (identical shapes: one reach for every pair)" : "",
-      r.candidate_pairs, r.decided_out, r.decided_in, r.decided_spheres, r.decided_same_form,
+      r.candidate_pairs, r.decided_out, r.decided_out_by_projection, r.decided_in, r.decided_spheres, r.decided_same_form,
       r.solved,
       r.solved ? precision_name(r.batch.precision) : "-", r.solved ? isa_name(r.batch.isa) : "-",
       r.batch.mean_evaluations, r.batch.fallbacks, r.invalid, r.found, cutoff,
