@@ -6,8 +6,10 @@
 //  1. candidates from cell lists, one per size class of bounding radius, so
 //     that a polydisperse scene does not make every cell as large as the
 //     largest particle's reach;
-//  2. prefilters: |r| >= mu_cut (R_i + R_j) => out, |r| < mu_cut (rho_i + rho_j)
-//     => in (R: bounding radius, rho: inscribed radius), no solve needed;
+//  2. prefilters: |r| >= mu_cut (R_i + R_j) => out, the projections of the
+//     scaled ellipsoids on r apart => out, |r| < mu_cut (rho_i + rho_j) => in
+//     (R: bounding radius, rho: inscribed radius); pairs of spheres and pairs
+//     of one form Q in closed form; no solve needed for any of these;
 //  3. the undecided pairs compacted into a SoA batch for overlap_batch (or
 //     contact_function_batch when mu^2 is asked for);
 //  4. the pairs found, sorted by i then j whatever the thread count.
@@ -81,8 +83,8 @@ class ParticleStore {
 
 struct ScreenOptions {
   double cutoff = 1;      // mu_cut: a pair is found when mu < cutoff; positive and finite
-  bool with_mu2 = false;  // also report mu^2 of every pair found (then every pair within
-                          // the bounding reach is solved: the inscribed prefilter gives no mu^2)
+  bool with_mu2 = false;  // also report mu^2 of every pair found (then every pair not found
+                          // apart is solved: the inscribed prefilter gives no mu^2)
   int threads = 0;        // OpenMP threads for every stage; 0: omp_get_max_threads()
   BatchOptions batch;     // precision, isa, ... of the solve (its threads are ignored)
   // Called now and then from one thread with the fraction of the candidate

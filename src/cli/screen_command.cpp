@@ -45,8 +45,10 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
       "written).\n\n"
       "Output: one pair per line, 'i j' (0-based indices of the ellipsoids in input "
       "order, i < j), and with --with-mu2 'i j mu2' (17 significant digits), sorted by "
-      "i then j whatever the thread count. Pairs are decided by the bounding and "
-      "inscribed spheres where they can be, pairs of spheres in closed form, the rest by "
+      "i then j whatever the thread count. Pairs are decided by the bounding spheres, "
+      "by their projections on the line of centres and by the inscribed spheres where "
+      "they can be, pairs of spheres and pairs of one form (identical and aligned) in "
+      "closed form, the rest by "
       "the batch path's certified overlap answers (or mu^2); the answer agrees with "
       "mu^2 < cutoff^2 whenever "
       "|mu^2 - cutoff^2| > 1e-9 cutoff^2.\n\n"
@@ -65,8 +67,8 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
              Choices<ParticleFormat>{{ParticleFormat::q, ParticleFormat::axes}, format_name},
              options.format, "how each line gives an ellipsoid (see Input)");
   parser.add_flag({"--with-mu2"},
-                  "also write mu^2 of every pair found (every pair within the bounding "
-                  "spheres' reach is then solved, pairs of spheres in closed form)",
+                  "also write mu^2 of every pair found (the inscribed spheres then decide "
+                  "nothing: every pair not found apart is solved, or taken in closed form)",
                   [&options] { options.with_mu2 = true; });
   add_threads_option(parser, options.threads, "the pairs");
   parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
