@@ -100,9 +100,19 @@ std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force(const ParticleStor
   return all;
 }
 
+// The largest relative error of the pairs' mu^2 against the reference path.
+double largest_mu2_error(const ParticleStore& s, const Box& box, const ScreenedPairs& pairs) {
+  double worst = 0;
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const double exact = reference_mu2(s, box, pairs.i[k], pairs.j[k]);
+    worst = std::max(worst, std::abs(pairs.mu2[k] - exact) / exact);
+  }
+  return worst;
+}
+
 struct Comparison {
   std::size_t found = 0, expected = 0, differing_within_band = 0, across_boundary = 0;
-  std::size_t out_by_projection = 0;  // expect_same_pairs: pairs the projections decided
+  ScreenReport report;  // expect_same_pairs: the screen's
 };
 
 // The screen's pairs against the brute force: sorted, i < j, and the same
@@ -176,7 +186,7 @@ Comparison expect_same_pairs(const SceneSpec& spec, double cutoff, const std::st
               what.c_str(), report.size_classes, report.candidate_pairs, report.decided_out,
               report.decided_out_by_projection, report.decided_in, report.solved);
   Comparison c = compare(s, box, cutoff, got, what);
-  c.out_by_projection = report.decided_out_by_projection;
+  c.report = report;
   return c;
 }
 
@@ -205,7 +215,7 @@ TEST(Screen, NeedlesAndDiscsWithAspectRatiosTo50MatchTheBruteForce) {
   EXPECT_GT(open.expected, 50u);
   // Elongated shapes: the projections on r12 decide many pairs the bounding
   // spheres cannot (and the brute force agrees with every one of them).
-  EXPECT_GT(periodic.out_by_projection, 1000u);
+  EXPECT_GT(periodic.report.decided_out_by_projection, 1000u);
 }
 
 TEST(Screen, SparseScenesMatchTheBruteForce) {
@@ -224,11 +234,7 @@ TEST(Screen, NeighbourListsWithASkinMatchTheBruteForceAndReportMu2) {
   const ScreenReport report = screen(s, box, 1.3, got, true);
   EXPECT_EQ(report.decided_in, 0u) << "with mu^2 every pair within reach is solved";
   ASSERT_EQ(got.mu2.size(), got.size());
-  double worst = 0;
-  for (std::size_t k = 0; k < got.size(); ++k) {
-    const double exact = reference_mu2(s, box, got.i[k], got.j[k]);
-    worst = std::max(worst, std::abs(got.mu2[k] - exact) / exact);
-  }
+  const double worst = largest_mu2_error(s, box, got);
   std::printf("[ measured ] neighbour list: max relative error of mu^2 %.3g\n", worst);
   EXPECT_LE(worst, 1e-13);
   compare(s, box, 1.3, got, "neighbour list, cutoff 1.3");
@@ -250,11 +256,7 @@ TEST(Screen, PairsOfSpheresAreDecidedInClosedFormWithoutASolve) {
   // With mu^2: the closed form to a few roundings of the reference's.
   ScreenedPairs with_mu2;
   screen(s, box, 1.2, with_mu2, true);
-  double worst = 0;
-  for (std::size_t k = 0; k < with_mu2.size(); ++k) {
-    const double exact = reference_mu2(s, box, with_mu2.i[k], with_mu2.j[k]);
-    worst = std::max(worst, std::abs(with_mu2.mu2[k] - exact) / exact);
-  }
+  const double worst = largest_mu2_error(s, box, with_mu2);
   EXPECT_LE(worst, 1e-14) << "a few roundings of |r|^2 / (a_i + a_j)^2";
   compare(s, box, 1.2, with_mu2, "spheres, cutoff 1.2");
 }
@@ -263,11 +265,9 @@ TEST(Screen, IdenticalShapesAreDetectedAndMatchTheBruteForce) {
   // One shape (semi-axes 0.3, 0.3, 0.9), random orientations: one size class
   // and one reach for every pair; a scene of varied shapes is not taken for one.
   const SceneSpec spec{1500, 3, 3, 0.3, 0.3, 10.0, true, 21};
-  ScreenedPairs got;
-  const ScreenReport report = screen(make_scene(spec), box_of(spec), 1, got);
-  EXPECT_TRUE(report.identical_shapes);
-  EXPECT_EQ(report.size_classes, 1u);
   const Comparison c = expect_same_pairs(spec, 1, "identical shapes, periodic");
+  EXPECT_TRUE(c.report.identical_shapes);
+  EXPECT_EQ(c.report.size_classes, 1u);
   EXPECT_GT(c.expected, 200u);
   expect_same_pairs({1500, 3, 3, 0.3, 0.3, 12.0, false, 22}, 1.2, "identical shapes, open, 1.2");
   ScreenedPairs varied;
@@ -302,11 +302,7 @@ TEST(Screen, PairsOfOneFormAreDecidedInClosedFormWithoutASolve) {
   EXPECT_GT(c.expected, 200u);
   ScreenedPairs with_mu2;
   screen(s, box, 1.3, with_mu2, true);
-  double worst = 0;
-  for (std::size_t k = 0; k < with_mu2.size(); ++k) {
-    const double exact = reference_mu2(s, box, with_mu2.i[k], with_mu2.j[k]);
-    worst = std::max(worst, std::abs(with_mu2.mu2[k] - exact) / exact);
-  }
+  const double worst = largest_mu2_error(s, box, with_mu2);
   std::printf("[ measured ] one form: max relative error of mu^2 %.3g\n", worst);
   EXPECT_LE(worst, 1e-14);
   compare(s, box, 1.3, with_mu2, "one form, cutoff 1.3");

@@ -78,6 +78,8 @@ class ParticleStore {
   // (each within a few eps |Q|), rounding the radii to the safe side.
   void store(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q,
              double smallest, double largest);
+  template <class Visit>
+  void for_each_array(Visit&& visit);  // every per-particle array
   std::vector<double> centre_[3], q_[6], bounding_, inscribed_, sphere_;
 };
 

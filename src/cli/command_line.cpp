@@ -292,4 +292,11 @@ void add_threads_option(OptionParser& parser, int& threads, const std::string& w
 
 int resolve_thread_count(int threads) { return threads > 0 ? threads : omp_get_max_threads(); }
 
+void add_output_option(OptionParser& parser, std::string& output, const std::string& what) {
+  parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
+                   "write " + what + " to OUT; it appears only when the run succeeds (written "
+                   "beside it, then renamed into place)",
+                   [&output](std::string_view path) { output = path; });
+}
+
 }  // namespace pwcontact::cli

@@ -164,11 +164,15 @@ void check_solver_options(const OptionParser& parser, const SolverOptions& optio
 // (usage_error) when the CPU lacks it or PWCONTACT_ISA is not valid.
 Isa resolve_instruction_set(Isa requested);
 
-// The OpenMP thread count `threads` stands for (0: the OpenMP default).
 // Adds --threads N (0 to 1024, 0: the OpenMP default) to `threads`; `what`
 // names what does not depend on it ("results", "the pairs").
 void add_threads_option(OptionParser& parser, int& threads, const std::string& what);
 
+// The OpenMP thread count `threads` stands for (0: the OpenMP default).
 int resolve_thread_count(int threads);
+
+// Adds -o, --output OUT to `output` ("-": standard output); `what` names
+// what is written ("the results", "the pairs").
+void add_output_option(OptionParser& parser, std::string& output, const std::string& what);
 
 }  // namespace pwcontact::cli

@@ -119,10 +119,7 @@ OptionParser contact_parser(ContactOptions& options) {
                   "--iterations, --accuracy, --formulation, --isa and --precision mixed "
                   "apply to the batch path only",
                   [&options] { options.scalar = true; });
-  parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
-                   "write the results to OUT; it appears only when the run succeeds "
-                   "(written beside it, then renamed into place)",
-                   [&options](std::string_view path) { options.output = path; });
+  add_output_option(parser, options.output, "the results");
   return parser;
 }
 

@@ -71,10 +71,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                   "nothing: every pair not found apart is solved, or taken in closed form)",
                   [&options] { options.with_mu2 = true; });
   add_threads_option(parser, options.threads, "the pairs");
-  parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
-                   "write the pairs to OUT; it appears only when the run succeeds (written "
-                   "beside it, then renamed into place)",
-                   [&options](std::string_view path) { options.output = path; });
+  add_output_option(parser, options.output, "the pairs");
   return parser;
 }
 

@@ -38,7 +38,6 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   lists.box = box;
   const std::size_t n = particles.size();
   const std::vector<double>& bounding = particles.bounding_radius();
-  lists.size_class.assign(n, 0);
   if (n == 0) return lists;
 
   const std::vector<double>& inscribed = particles.inscribed_radius();
@@ -82,24 +81,23 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   lists.largest_reach = cutoff * largest;
 
   // Classes, then only the non-empty ones, largest radii first.
-  std::vector<std::uint8_t> raw(n);
+  std::vector<std::uint8_t> size_class(n);  // per particle: halvings, then its grid
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     const int halvings = std::ilogb(largest / bounding[i]);  // floor(log2), >= 0
-    raw[i] = std::uint8_t(std::min(std::max(halvings, 0), max_classes - 1));
+    size_class[i] = std::uint8_t(std::min(std::max(halvings, 0), max_classes - 1));
   }
   std::size_t members[max_classes] = {};
   double radius[max_classes] = {};
   for (std::size_t i = 0; i < n; ++i) {
-    ++members[raw[i]];
-    radius[raw[i]] = std::max(radius[raw[i]], bounding[i]);
+    ++members[size_class[i]];
+    radius[size_class[i]] = std::max(radius[size_class[i]], bounding[i]);
   }
   int compact[max_classes];
   for (int c = 0; c < max_classes; ++c) {
     compact[c] = int(lists.grids.size());
     if (members[c] == 0) continue;
     ClassGrid grid;
-    grid.radius = radius[c];
     grid.span = cells_per_reach;
     // Cells at least as wide as 1 / span of the reach of two of the class's
     // largest members (with room for the rounding of a cell index); fewer
@@ -121,13 +119,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
     lists.grids.push_back(std::move(grid));
   }
-  for (std::size_t i = 0; i < n; ++i) lists.size_class[i] = std::uint8_t(compact[raw[i]]);
+  for (std::size_t i = 0; i < n; ++i) size_class[i] = std::uint8_t(compact[size_class[i]]);
 
   // Counting sort of each class's members by cell, in particle order.
   std::vector<std::uint32_t> cell(n);
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
-    const ClassGrid& grid = lists.grids[lists.size_class[i]];
+    const ClassGrid& grid = lists.grids[size_class[i]];
     const int a = lists.cell_of(grid, 0, lists.wrapped(0, particles.centre(0)[i]));
     const int b = lists.cell_of(grid, 1, lists.wrapped(1, particles.centre(1)[i]));
     const int c = lists.cell_of(grid, 2, lists.wrapped(2, particles.centre(2)[i]));
@@ -139,7 +137,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     const std::size_t cells = std::size_t(grid.cells[0]) * grid.cells[1] * grid.cells[2];
     grid.cell_start.assign(cells + 1, 0);
   }
-  for (std::size_t i = 0; i < n; ++i) ++lists.grids[lists.size_class[i]].cell_start[cell[i] + 1];
+  for (std::size_t i = 0; i < n; ++i) ++lists.grids[size_class[i]].cell_start[cell[i] + 1];
   for (ClassGrid& grid : lists.grids) {
     for (std::size_t c = 1; c < grid.cell_start.size(); ++c)
       grid.cell_start[c] += grid.cell_start[c - 1];
@@ -150,13 +148,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   for (std::size_t g = 0; g < lists.grids.size(); ++g)
     next[g].assign(lists.grids[g].cell_start.begin(), lists.grids[g].cell_start.end() - 1);
   // cell[i] becomes particle i's place among its class's members.
-  for (std::size_t i = 0; i < n; ++i) cell[i] = next[lists.size_class[i]][cell[i]]++;
+  for (std::size_t i = 0; i < n; ++i) cell[i] = next[size_class[i]][cell[i]]++;
   // The copies in cell order, read in particle order (streaming reads,
   // scattered writes of three cache lines per particle: measured faster than
   // gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
-    ClassGrid& grid = lists.grids[lists.size_class[i]];
+    ClassGrid& grid = lists.grids[size_class[i]];
     const std::size_t at = cell[i];
     CoarseMember& coarse = grid.coarse[at];
     Member& member = grid.member[at];

@@ -57,7 +57,6 @@ struct alignas(64) Member {
 // of a run of cells along z (the search streams through rows of cells
 // instead of jumping across the particle arrays).
 struct ClassGrid {
-  double radius = 0;  // the largest bounding radius in the class
   int span = 1;       // cells per reach: a member's partners lie within span cells along every axis
   std::array<int, 3> cells = {1, 1, 1};
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
@@ -70,7 +69,6 @@ struct ClassGrid {
 struct CellLists {
   Box box;
   std::array<double, 3> origin = {0, 0, 0};  // open boxes: the lower corner of all centres
-  std::vector<std::uint8_t> size_class;      // per particle
   std::vector<ClassGrid> grids;              // by class, largest radii first
   // How far the coarse distance test (wrapped positions, reach rounded) may
   // be from the exact one, as a length: it lets a pair through when its

@@ -24,20 +24,19 @@ Box Box::periodic_box(double lx, double ly, double lz) {
   return box;
 }
 
+template <class Visit>
+void ParticleStore::for_each_array(Visit&& visit) {
+  for (auto& v : centre_) visit(v);
+  for (auto& v : q_) visit(v);
+  for (auto* v : {&bounding_, &inscribed_, &sphere_}) visit(*v);
+}
+
 void ParticleStore::reserve(std::size_t n) {
-  for (auto& v : centre_) v.reserve(n);
-  for (auto& v : q_) v.reserve(n);
-  bounding_.reserve(n);
-  inscribed_.reserve(n);
-  sphere_.reserve(n);
+  for_each_array([n](std::vector<double>& v) { v.reserve(n); });
 }
 
 void ParticleStore::resize(std::size_t n) {
-  for (auto& v : centre_) v.resize(n);
-  for (auto& v : q_) v.resize(n);
-  bounding_.resize(n);
-  inscribed_.resize(n);
-  sphere_.resize(n);
+  for_each_array([n](std::vector<double>& v) { v.resize(n); });
 }
 
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {

@@ -10,6 +10,7 @@
 #include <string>
 #include <utility>
 
+#include "pwcontact/reference.hpp"
 #include "pwcontact/screen.hpp"
 #include "screen/cell_lists.hpp"
 
@@ -119,30 +120,18 @@ inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double r
 // Whether two particles have the same form Q (the same shape and
 // orientation) that is well enough conditioned for the closed form below:
 // bounding over inscribed radius at most 100, so cond(Q) <= 1e4 and
-// r^T Q^-1 r by Cholesky within 1e4 * a few eps (1e-11) relatively.
+// r^T Q^-1 r by L D L^T within 1e4 * a few eps (1e-11) relatively.
 inline bool same_moderate_form(const Side& p, const Side& o) {
   for (int k = 0; k < 6; ++k)
     if (p.q[k] != o.q[k]) return false;
   return p.bounding <= 100 * p.inscribed;
 }
 
-// r^T Q^-1 r by the Cholesky factor Q = L L^T: |L^-1 r|^2.
-inline double inverse_form_value(const double q[6], const double r[3]) {
-  const double l00 = std::sqrt(q[0]);
-  const double l10 = q[1] / l00, l20 = q[2] / l00;
-  const double l11 = std::sqrt(q[3] - l10 * l10);
-  const double l21 = (q[4] - l20 * l10) / l11;
-  const double l22 = std::sqrt(q[5] - l20 * l20 - l21 * l21);
-  const double y0 = r[0] / l00;
-  const double y1 = (r[1] - l10 * y0) / l11;
-  const double y2 = (r[2] - l20 * y0 - l21 * y1) / l22;
-  return y0 * y0 + y1 * y1 + y2 * y2;
-}
-
 // r^T Q r for the form q (eq. 3's six numbers).
 inline double form_value(const double q[6], const double r[3]) {
-  return q[0] * r[0] * r[0] + q[3] * r[1] * r[1] + q[5] * r[2] * r[2] +
-         2 * (q[1] * r[0] * r[1] + q[2] * r[0] * r[2] + q[4] * r[1] * r[2]);
+  double qr[3];
+  detail::symmetric_times(q, r, qr);
+  return detail::dot3(r, qr);
 }
 
 // Apart when the projections of the two ellipsoids scaled by the cutoff on
@@ -187,7 +176,7 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
     // lambda) r^T Q^-1 r by eq. (11), largest at lambda = 1/2 (eq. 6). A scene
     // of identical, aligned ellipsoids is an affine image of one of spheres.
     ++mine.same_form;
-    decide(inverse_form_value(p.q, r) / 4);
+    decide(detail::inverse_quadratic_form(detail::Ldlt3<double>(p.q), r) / 4);
     return;
   }
   const double inner = cutoff * (p.inscribed + o.inscribed);
