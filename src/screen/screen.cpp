@@ -139,13 +139,15 @@ inline double form_value(const double q[6], const double r[3]) {
 // support of ellipsoid Q in the direction r / |r| is sqrt(r^T Q r) / |r|, so
 // |r| >= cutoff (h_p + h_o) reads rr >= cutoff (sqrt(r^T Q_p r) +
 // sqrt(r^T Q_o r)). Tighter than the bounding spheres for elongated shapes.
-// r^T Q r errs by at most a few eps |Q| rr (bounding^2 rr): 16 eps of it
-// is added before the square roots, so the test stays on the safe side.
+// r^T Q r, a sum of nine products, errs by at most about 6 eps times the sum
+// of their magnitudes, and |q_ij| <= max q_ii <= R^2 makes that sum at most
+// 3 R^2 rr: 18 eps R^2 rr in the worst case. 64 eps R^2 rr is added before
+// the square roots, so the test stays on the safe side.
 inline bool apart_by_projections(const Side& p, const Side& o, const double r[3], double rr,
                                  double cutoff) {
   constexpr double eps = std::numeric_limits<double>::epsilon();
-  const double sp = form_value(p.q, r) + 16 * eps * p.bounding * p.bounding * rr;
-  const double so = form_value(o.q, r) + 16 * eps * o.bounding * o.bounding * rr;
+  const double sp = form_value(p.q, r) + 64 * eps * p.bounding * p.bounding * rr;
+  const double so = form_value(o.q, r) + 64 * eps * o.bounding * o.bounding * rr;
   return rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
 }
 
