@@ -280,27 +280,36 @@ kernels::OverlapKernel<T> overlap_kernel(const kernels::KernelTable& table, Prec
 
 // The reference path's answer for a pair the kernels left, with the outputs
 // asked for; returns whether it counts as a fallback (a valid pair the kernels
-// did not finish, as opposed to an invalid one).
+// did not finish, as opposed to an invalid one). The answer is checked
+// against the range of the output type (T, or double for a long double
+// answer): a mu^2 beyond it is out_of_range, never a valid infinity or zero.
 template <class T>
 bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
                            Status* status, std::size_t i, unsigned bits, Accuracy accuracy) {
   const ScalarPair p = scalar_pair(pairs, i);
   const ContactResult<double> ref = accuracy == Accuracy::high ? reference_in_long_double(p)
                                                                 : contact_function<double>(p.r, p.q1, p.q2);
+  const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;
   out.mu2[i] = T(ref.mu2);
   if (bits & kernels::with_lambda) out.lambda[i] = T(ref.lambda);
   if (bits & ~unsigned(kernels::with_lambda)) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     ContactGeometry<double> g{{nan, nan, nan}, {nan, nan, nan}, {nan, nan, nan}};
-    if (ref.status == Status::ok) g = contact_geometry<double>(p.r, p.q1, p.q2, ref.lambda);
+    if (solved) g = contact_geometry<double>(p.r, p.q1, p.q2, ref.lambda);
     for (int k = 0; k < 3; ++k) {
       if (bits & kernels::with_contact_point) out.contact_point[k][i] = T(g.contact_point[k]);
       if (bits & kernels::with_normal) out.normal[k][i] = T(g.normal[k]);
       if (bits & kernels::with_gradient) out.gradient[k][i] = T(g.gradient[k]);
     }
   }
-  status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
-  return ref.status == Status::ok || ref.status == Status::not_converged;
+  // (mu^2 = 0 with status ok is the exact answer for coincident centres.)
+  const bool coincident = ref.status == Status::ok && ref.mu2 == 0;
+  if (solved)
+    status[i] = coincident || detail::range_status(out.mu2[i]) == Status::ok ? Status::ok_fallback
+                                                                              : Status::out_of_range;
+  else
+    status[i] = ref.status;
+  return solved || ref.status == Status::not_converged;
 }
 
 template <class T>
@@ -360,9 +369,12 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
     answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
       const ScalarPair p = scalar_pair(pairs, i);
       const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
-      out.overlap[i] = ref.status == Status::ok && ref.mu2 < settings.cutoff_mu2;
-      status[i] = ref.status == Status::ok ? Status::ok_fallback : ref.status;
-      tally.fallbacks += ref.status == Status::ok || ref.status == Status::not_converged;
+      // A mu^2 out of range (infinite, or below the smallest normal number)
+      // still decides the overlap exactly.
+      const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;
+      out.overlap[i] = solved && ref.mu2 < settings.cutoff_mu2;
+      status[i] = solved ? Status::ok_fallback : ref.status;
+      tally.fallbacks += solved || ref.status == Status::not_converged;
     });
     tally.overlapping += count_ones(out.overlap + begin, n);
   });

@@ -10,6 +10,7 @@ const char* status_name(Status s) noexcept {
     case Status::q1_not_positive_definite: return "q1_not_positive_definite";
     case Status::q2_not_positive_definite: return "q2_not_positive_definite";
     case Status::not_converged: return "not_converged";
+    case Status::out_of_range: return "out_of_range";
   }
   return "unknown";
 }
@@ -32,6 +33,10 @@ const char* status_description(Status s) noexcept {
     case Status::not_converged:
       return "invalid: the reference path did not converge either (mu2 and lambda "
              "are NaN)";
+    case Status::out_of_range:
+      return "invalid: mu2 overflows the result's type (mu2 = inf: certainly apart) or "
+             "underflows below its smallest normal number (mu2 = 0 or subnormal: certainly "
+             "overlapping); lambda is valid";
   }
   return "unknown status";
 }

@@ -18,6 +18,7 @@
 
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "pwcontact/status.hpp"
 
@@ -59,20 +60,6 @@ struct Ldlt3 {
     d2 = a[5] - l20 * a[2] - l21 * t;
   }
 
-  // Positive definite beyond doubt: every pivot above the rounding error of
-  // the terms that cancel in it (16 eps times their magnitudes; the error is
-  // a few eps). A Q whose smallest eigenvalue is below ~1e-15 of its largest
-  // (double) is then "not positive definite" rather than answered as if it
-  // were an ellipsoid its rounded entries cannot define. Written so that NaN
-  // pivots count as "not positive definite".
-  bool positive_definite(const T a[6]) const {
-    using std::abs;
-    const T margin = T(16) * std::numeric_limits<T>::epsilon();
-    const T cancelled1 = a[3] + abs(l10 * a[1]);
-    const T cancelled2 = a[5] + abs(l20 * a[2]) + l21 * l21 * d1;
-    return d0 > 0 && d1 > margin * cancelled1 && d2 > margin * cancelled2;
-  }
-
   // y = L^-1 b
   void forward(const T b[3], T y[3]) const {
     y[0] = b[0];
@@ -87,6 +74,78 @@ struct Ldlt3 {
     x[0] = z[0] - l10 * x[1] - l20 * x[2];
   }
 };
+
+// Whether a stored form is positive definite, decided so that a form that is
+// not is never accepted.
+//
+// First a filter: Sylvester's criterion through the pivots of Q = L D L^T,
+// d0 = a0, d1 = a3 - l10 a1, d2 = a5 - l20 a2 - l21 t (t = a4 - l20 a1),
+// each compared with a rigorous bound on its rounding error. A pivot carries
+// its own rounding and what it inherits from the earlier ones: to first
+// order (u = eps / 2, the unit roundoff),
+//   |d1~ - d1| <= 3u (a3 + |l10 a1|)                                 = 3u C1
+//   |d2~ - d2| <= 2u (a5 + |l20 a2| + l21 t) + 4u |l21| (|a4| + |l20 a1|)
+//                 + 3u l21^2 C1 + 2u l21 t
+// (the last terms are t^2 / d1 inheriting the errors of t and d1). The
+// filter's bounds are twice these, plus an absolute floor for the rounding
+// of numbers that underflow. A pivot below minus its bound proves the
+// form indefinite or negative (the leading minors are a0 d1 and a0 d1 d2);
+// one above 64 times the rounding of its terms (where the first-order bound
+// holds with room) proves the minor positive. Between, the filter cannot
+// tell, and the minors' signs are computed exactly (positive_definite_exactly).
+enum class Definiteness { positive, not_positive, undecided };
+
+template <class T>
+Definiteness definiteness(const T a[6]) {
+  using std::abs;
+  const T eps = std::numeric_limits<T>::epsilon();
+  const T underflow = T(16) * std::numeric_limits<T>::min();
+  if (!(a[0] > 0) || !(a[3] > 0) || !(a[5] > 0)) return Definiteness::not_positive;
+  const T l10 = a[1] / a[0], l20 = a[2] / a[0];
+  const T c1 = l10 * a[1];
+  const T d1 = a[3] - c1;
+  const T cancelled1 = a[3] + abs(c1);
+  if (d1 < -(T(4) * eps * cancelled1 + underflow)) return Definiteness::not_positive;
+  if (!(d1 > T(64) * eps * cancelled1 + underflow)) return Definiteness::undecided;
+  const T t = a[4] - l20 * a[1];
+  const T l21 = t / d1;
+  const T c2 = l20 * a[2], c3 = l21 * t;
+  const T d2 = a[5] - c2 - c3;
+  const T cancelled2 = a[5] + abs(c2) + c3 + abs(l21) * (abs(a[4]) + abs(l20 * a[1])) +
+                       l21 * l21 * cancelled1;
+  if (d2 < -(T(4) * eps * cancelled2 + underflow)) return Definiteness::not_positive;
+  if (!(d2 > T(64) * eps * cancelled2 + underflow)) return Definiteness::undecided;
+  return Definiteness::positive;
+}
+
+// Sylvester's criterion on the stored numbers, exactly: the leading minors
+// a0 a3 - a1^2 and det Q of D Q D with D the diagonal of powers of two that
+// brings Q's diagonal into [1, 4) (congruent: the same signs), each summed
+// from error-free products as a floating-point expansion, whose sign is that
+// of its leading component. Off-diagonals that underflow in D Q D change a
+// minor by less than 2^-1000; a minor below 2^-900 (a form whose smallest
+// eigenvalue is below ~2^-900 of its diagonal) is therefore not positive
+// beyond doubt, and the form is rejected. Defined in reference.cpp.
+bool positive_definite_exactly(const double a[6]);
+
+// The decision the whole library uses: the filter, then the exact test on the
+// stored numbers. Every float and double is a double; a wider type's entries
+// that are not (never the case for the library's inputs) cannot be decided
+// exactly and are rejected.
+template <class T>
+bool positive_definite(const T a[6]) {
+  switch (definiteness(a)) {
+    case Definiteness::positive: return true;
+    case Definiteness::not_positive: return false;
+    case Definiteness::undecided: break;
+  }
+  double d[6];
+  for (int k = 0; k < 6; ++k) {
+    d[k] = static_cast<double>(a[k]);
+    if (!(T(d[k]) == a[k])) return false;
+  }
+  return positive_definite_exactly(d);
+}
 
 // y = A x for a symmetric A given as 6 numbers.
 template <class T>
@@ -179,29 +238,67 @@ T max_diagonal(const T q[6]) {
   return m;
 }
 
-// mu^2 is invariant under Q -> k^2 Q, r -> k r. The pair scaled by a power of
-// two (exact) so that the largest diagonal entry is O(1): no overflow or
-// underflow at extreme scales, and the factorisations see O(1) numbers.
-// r = 2^-exponent r12, Q = 2^-2 exponent Q.
+// mu^2 is invariant under Q -> k^2 Q, r -> k r, and homogeneous of degree 2
+// in r alone. The pair is solved as two exact power-of-two scalings: Q by the
+// one that brings the largest diagonal entry to O(1), r by the one that
+// brings its largest component to [1/2, 1). Then no scale of the inputs
+// overflows or underflows on the way, nor does r^T Q^-1 r for a distance
+// far beyond the sizes (or far below them), and mu^2 is rescaled once at
+// the end, where its own overflow or underflow is reported (out_of_range).
+//   Q = 2^(2 q_exponent) q,  r12 = 2^r_exponent r,
+//   mu^2(r12, Q1, Q2) = 2^(2 (r_exponent - q_exponent)) mu^2(r, q1, q2).
+// Coincident centres (r12 = 0) keep r = 0 and r_exponent = 0.
 template <class T>
 struct ScaledPair {
   T r[3], q1[6], q2[6];
-  int exponent = 0;
+  int q_exponent = 0;
+  int r_exponent = 0;
 
   ScaledPair(const T r12[3], const T q1_in[6], const T q2_in[6]) {
+    using std::abs;
     using std::frexp;
     using std::ldexp;
     using std::sqrt;
     const T largest = max_diagonal(q1_in) > max_diagonal(q2_in) ? max_diagonal(q1_in)
                                                                  : max_diagonal(q2_in);
-    if (largest > 0) frexp(sqrt(largest), &exponent);
-    for (int k = 0; k < 3; ++k) r[k] = ldexp(r12[k], -exponent);
+    if (largest > 0) frexp(sqrt(largest), &q_exponent);
+    T r_largest = abs(r12[0]);
+    for (int k = 1; k < 3; ++k)
+      if (abs(r12[k]) > r_largest) r_largest = abs(r12[k]);
+    if (r_largest > 0) frexp(r_largest, &r_exponent);
+    for (int k = 0; k < 3; ++k) r[k] = ldexp(r12[k], -r_exponent);
     for (int k = 0; k < 6; ++k) {
-      q1[k] = ldexp(q1_in[k], -2 * exponent);
-      q2[k] = ldexp(q2_in[k], -2 * exponent);
+      q1[k] = ldexp(q1_in[k], -2 * q_exponent);
+      q2[k] = ldexp(q2_in[k], -2 * q_exponent);
     }
   }
+
+  // mu^2 (or f) of the given pair from that of the scaled one.
+  T unscaled_mu2(T mu2) const {
+    using std::ldexp;
+    return ldexp(mu2, 2 * (r_exponent - q_exponent));
+  }
 };
+
+// r^T Q^-1 r through the factorisation, or infinity where it is not usable:
+// a pivot that is not positive (a form so much smaller than the other that
+// the common scaling left it without significant digits) or an overflow.
+template <class T>
+T slope_or_infinity(const Ldlt3<T>& ldlt, const T r[3]) {
+  using std::isfinite;
+  const T slope = inverse_quadratic_form(ldlt, r);
+  const bool usable = ldlt.d0 > 0 && ldlt.d1 > 0 && ldlt.d2 > 0 && slope > 0 && isfinite(slope);
+  return usable ? slope : std::numeric_limits<T>::infinity();
+}
+
+// The status of a mu^2 as the type holds it: out_of_range beyond the normal
+// range (mu2 > 0 here: coincident centres are answered before).
+template <class T>
+Status range_status(T mu2) {
+  return mu2 >= std::numeric_limits<T>::min() && mu2 <= std::numeric_limits<T>::max()
+             ? Status::ok
+             : Status::out_of_range;
+}
 
 }  // namespace detail
 
@@ -218,27 +315,40 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   if (!detail::all_finite(r12, 3) || !detail::all_finite(q1, 6) ||
       !detail::all_finite(q2, 6))
     return {nan, nan, Status::non_finite_input, 0};
+  // Decided on the stored numbers, before any scaling could round them.
+  if (!detail::positive_definite(q1)) return {nan, nan, Status::q1_not_positive_definite, 0};
+  if (!detail::positive_definite(q2)) return {nan, nan, Status::q2_not_positive_definite, 0};
 
   const detail::ScaledPair<T> scaled(r12, q1, q2);
-  const T* const r = scaled.r;
-  const T* const p1 = scaled.q1;
-  const T* const p2 = scaled.q2;
-
-  const detail::Ldlt3<T> ldlt1(p1), ldlt2(p2);
-  if (!ldlt1.positive_definite(p1))
-    return {nan, nan, Status::q1_not_positive_definite, 0};
-  if (!ldlt2.positive_definite(p2))
-    return {nan, nan, Status::q2_not_positive_definite, 0};
-
-  const T slope0 = detail::inverse_quadratic_form(ldlt1, r);  // f'(0)
-  const T slope1 = detail::inverse_quadratic_form(ldlt2, r);  // -f'(1)
-  if (!(slope0 > 0) || !(slope1 > 0)) {
+  if (r12[0] == 0 && r12[1] == 0 && r12[2] == 0) {
     // Coincident centres: f vanishes identically, mu^2 = 0. Any lambda is a
     // maximiser; report the one that is exact for spheres in the limit of
     // small r along any direction, from the traces.
-    const T t1 = sqrt(p1[0] + p1[3] + p1[5]);
-    const T t2 = sqrt(p2[0] + p2[3] + p2[5]);
+    const T t1 = sqrt(scaled.q1[0] + scaled.q1[3] + scaled.q1[5]);
+    const T t2 = sqrt(scaled.q2[0] + scaled.q2[3] + scaled.q2[5]);
     return {T(0), t1 / (t1 + t2), Status::ok, 0};
+  }
+  T r[3] = {scaled.r[0], scaled.r[1], scaled.r[2]};
+  const T* p1 = scaled.q1;
+  const T* p2 = scaled.q2;
+  T slope0 = detail::slope_or_infinity(detail::Ldlt3<T>(p1), r);  // f'(0)
+  T slope1 = detail::slope_or_infinity(detail::Ldlt3<T>(p2), r);  // -f'(1)
+  const T infinity = std::numeric_limits<T>::infinity();
+  // A form negligible beside the other (largest diagonal entry below eps^2
+  // of the other's: sizes beyond 1 / eps apart) puts the maximiser within
+  // ~eps of 0 or 1. Its slope may overflow, or its factorisation be lost to
+  // the common scaling; the other slope is then all the guess needs.
+  auto negligible = [eps](const T* q, const T* other) {
+    return detail::max_diagonal(q) < eps * eps * detail::max_diagonal(other);
+  };
+  // Ellipsoid 1 negligible: solved as ellipsoid 2, since mu^2(r, Q1, Q2) =
+  // mu^2(-r, Q2, Q1) with lambda -> 1 - lambda, so that the maximiser is near
+  // 1, where lambda's clamp below handles it.
+  const bool swapped = slope0 == infinity && negligible(p1, p2);
+  if (swapped) {
+    std::swap(p1, p2);
+    std::swap(slope0, slope1);
+    for (T& x : r) x = -x;
   }
 
   // lambda stays at or below the largest number under 1: f(1) = 0, while a
@@ -247,14 +357,23 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   // relative 2^-digits in f (concavity: f(l) >= l mu^2 / lambda* on
   // [0, lambda*]). The side of 0 needs nothing: lambda* ~ a1 / a2 there, and
   // the nondimensionalised forms keep that far above the smallest number.
+  // A slope that is not usable for another reason (a form positive definite
+  // but too ill-conditioned for its factorisation in T) leaves the guess at
+  // 1/2: the safeguarded iteration needs none.
   const T below_one = T(1) - eps / 2;
-  T lambda = detail::radial_initial_guess(slope0, slope1);
+  T lambda = T(0.5);
+  if (slope0 < infinity && slope1 < infinity)
+    lambda = detail::radial_initial_guess(slope0, slope1);
+  else if (slope1 == infinity && negligible(p2, p1))
+    lambda = below_one;
   if (lambda > below_one) lambda = below_one;
   T lo = 0, hi = 1;
   T previous_step = 1;
   for (int it = 1; it <= options.max_iterations; ++it) {
     const detail::Residual<T> res = detail::evaluate(r, p1, p2, lambda);
-    if (!(res.dg > 0) || !(res.f >= 0)) break;  // lost to round-off: give up honestly
+    // Lost to round-off: give up honestly. (g' = 0 is allowed: a form that
+    // the scaling left without digits has none; the step is then a bisection.)
+    if (!(res.dg >= 0) || !(res.f >= 0)) break;
     if (res.g > 0) hi = lambda;
     if (res.g < 0) lo = lambda;
     const T step = res.g / res.dg;
@@ -274,8 +393,10 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
     if (settled || stalled) {
       lambda = next;
       const detail::Residual<T> final_res = detail::evaluate(r, p1, p2, lambda);
-      if (!(final_res.f >= 0)) break;
-      return {final_res.f, lambda, Status::ok, it + 1};
+      using std::isfinite;
+      if (!(final_res.f > 0) || !isfinite(final_res.f)) break;
+      const T mu2 = scaled.unscaled_mu2(final_res.f);
+      return {mu2, swapped ? T(1) - lambda : lambda, detail::range_status(mu2), it + 1};
     }
     if (newton) previous_step = step;
     lambda = next;
@@ -299,6 +420,7 @@ struct ContactGeometry {
 // contact_function's statuses).
 template <class T>
 ContactGeometry<T> contact_geometry(const T r12[3], const T q1[6], const T q2[6], T lambda) {
+  using std::ldexp;
   using std::sqrt;
   const detail::ScaledPair<T> p(r12, q1, q2);
   const T mu = T(1) - lambda;
@@ -310,16 +432,15 @@ ContactGeometry<T> contact_geometry(const T r12[3], const T q1[6], const T q2[6]
   z[0] = y[0] / ldlt.d0;
   z[1] = y[1] / ldlt.d1;
   z[2] = y[2] / ldlt.d2;
-  ldlt.backward(z, s);  // s = t Q^-1 r12 with t = 2^-exponent
+  ldlt.backward(z, s);  // Q^-1 r12 = 2^(r_exponent - 2 q_exponent) s
   T a[3];
   detail::symmetric_times(p.q1, s, a);
   const T norm = sqrt(detail::dot3(s, s));
   ContactGeometry<T> out;
   for (int k = 0; k < 3; ++k) {
-    using std::ldexp;
-    out.contact_point[k] = ldexp(mu * a[k], p.exponent);
+    out.contact_point[k] = ldexp(mu * a[k], p.r_exponent);
     out.normal[k] = norm > 0 ? s[k] / norm : T(0);
-    out.gradient[k] = ldexp(T(2) * lambda * mu * s[k], -p.exponent);
+    out.gradient[k] = ldexp(T(2) * lambda * mu * s[k], p.r_exponent - 2 * p.q_exponent);
   }
   return out;
 }

@@ -14,15 +14,20 @@ enum class Status : std::uint8_t {
   ok_fallback = 1,  // the batch kernels left the pair (convergence check missed,
                     // or an overlap left undecided) and the scalar reference
                     // path answered it
-  // Invalid answers: mu2 and lambda are NaN.
+  // Invalid answers: mu2 and lambda are NaN (but for out_of_range).
   non_finite_input = 2,          // NaN or infinity in r12, q1 or q2
   q1_not_positive_definite = 3,  // Q1 zero, negative, indefinite or singular
   q2_not_positive_definite = 4,  // same for Q2
   not_converged = 5,             // even the reference path failed to converge
+  // mu^2 is outside the normal range of the result's type: mu2 is +infinity
+  // when it overflows (the pair is certainly apart) and 0 or subnormal when it
+  // underflows (certainly overlapping); lambda is valid. An overlap answer is
+  // exact for such a pair and gets a valid status instead.
+  out_of_range = 6,
 };
 
 // Number of distinct status codes; codes are 0 .. status_count - 1.
-inline constexpr int status_count = 6;
+inline constexpr int status_count = 7;
 
 constexpr bool is_valid(Status s) noexcept {
   return s == Status::ok || s == Status::ok_fallback;

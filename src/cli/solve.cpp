@@ -165,8 +165,10 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
     const std::size_t i = std::size_t(signed_i);
     T r12[3], q1[6], q2[6];
     pairs.get(i, r12, q1, q2);
-    const ContactResult<T> result = contact_function<T>(r12, q1, q2);
-    const bool valid = is_valid(result.status);
+    ContactResult<T> result = contact_function<T>(r12, q1, q2);
+    // A mu^2 out of range has a valid lambda, and decides an overlap exactly.
+    const bool solved = is_valid(result.status) || result.status == Status::out_of_range;
+    if (overlap && solved) result.status = Status::ok;
     ++counts[int(result.status)];
     evaluations += std::size_t(result.iterations);
     if (out.mu2) out.mu2[i] = result.mu2;
@@ -175,9 +177,9 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
     if (geometry)
       store_geometry(
           out, i,
-          valid ? contact_geometry<T>(r12, q1, q2, result.lambda) : undefined_geometry<T>());
+          solved ? contact_geometry<T>(r12, q1, q2, result.lambda) : undefined_geometry<T>());
     if (overlap) {
-      overlap[i] = valid && double(result.mu2) < cutoff_mu2;
+      overlap[i] = solved && double(result.mu2) < cutoff_mu2;
       overlapping += overlap[i];
     }
   }

@@ -294,17 +294,21 @@ class FullBlock : public LaneGroups<Arch, T> {
       const M newton = this->advance(e, u);
       // Convergence check. Near the maximum f is a parabola in lambda, and
       // one more Newton step would raise f by the gain g^2 / (2 g'). A lane is
-      // finished when that step stayed in the bracket (the model holds) and
-      // the gain is below corrected_gain f: the answer is then f + gain,
-      // whose error is third order, ~(step / scale of lambda) gain (measured
-      // at the double floor on the random, pw85 and log-uniform families up
-      // to aspect 1e3 for gains up to 1e-10 f; the tolerance is 1e-11 f).
-      // lambda itself (the Newton step's) is then accurate to ~ the square of
-      // the step: when lambda or what depends on it is asked for, the
-      // tolerance is tighter (see KernelTolerance).
+      // finished when that step stayed in the bracket (the model holds), the
+      // gain is below corrected_gain f, and the model's own error, the
+      // third-order term ~gain |step| / w with w = min(lambda, 1 - lambda)
+      // (see KernelTolerance::third_order), is below an eps of f: the answer
+      // is then f + gain. Without the third-order test a lane with lambda*
+      // near 0 or 1 (very different sizes) would stop where the step is a
+      // sizeable fraction of w and the gain's error hundreds of eps.
+      // When lambda or what depends on it is asked for, the step must also
+      // be below lambda_step w: lambda itself (the Newton step's) is then
+      // accurate to ~1e-12 w (a small gain alone does not make it so where f
+      // is flat: crossed needles and discs, whose g' is tiny).
       // Otherwise (a bisection step, round-off noise in g near convergence)
       // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
-      // ulp of f finishes it, with the answer f.
+      // ulp of f finishes it, with the answer f (and, when lambda is asked
+      // for, the same bound on the step).
       // The model is Newton's whatever the formulation (for Newton's own, the
       // step g / g' was just taken: no second division).
       const bool newton_formulation = settings_.formulation == Formulation::newton;
@@ -313,8 +317,16 @@ class FullBlock : public LaneGroups<Arch, T> {
       const M in_bracket =
           newton_formulation ? newton : (lo_[u] <= newton_lambda) & (newton_lambda <= hi_[u]);
       const B gain = B(0.5) * e.g * step;
-      const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f);
-      const M bounded = xsimd::abs(e.g) * (hi_[u] - lo_[u]) <= B(KernelTolerance<T>::bounded_gain) * e.f;
+      const B width = xsimd::min(e.lambda, e.mu);
+      const B abs_step = xsimd::abs(step);
+      M small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
+      if (settings_.outputs == 0) small_step = B(0) == B(0);
+      const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f) &
+                          (gain * abs_step <= B(KernelTolerance<T>::third_order) * width * e.f) &
+                          small_step;
+      const M bounded = (xsimd::abs(e.g) * (hi_[u] - lo_[u]) <=
+                         B(KernelTolerance<T>::bounded_gain) * e.f) &
+                        small_step;
       M done = corrected | bounded;
       // A float lane too ill-conditioned for float goes to the reference path
       // (in double) now: more float iterations would not help it.
@@ -323,22 +335,30 @@ class FullBlock : public LaneGroups<Arch, T> {
         hopeless = growth(e.ldlt, e.q) > B(KernelTolerance<T>::max_growth);
         done = done & !hopeless;
       }
-      const M finished = live_[u] & (done | coincident_[u]);
 
       Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}};
       if (settings_.accuracy == Accuracy::high)
         answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
+      // A valid answer is finite and positive (f > 0 inside (0, 1) for
+      // distinct centres): anything else the arithmetic produced goes to the
+      // reference path, whatever the tests above said.
+      const M finished = live_[u] & ((done & (answer.f > B(0)) &
+                                      (answer.f < B(std::numeric_limits<T>::infinity()))) |
+                                     coincident_[u]);
       write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
-      // The reported lambda is the Newton step's, kept in the bracket: for a
+      // The reported lambda is the Newton step's, kept in the bracket (for a
       // lane finished by the bound the step may leave the bracket by
-      // round-off, and the bracket's end is then the better estimate.
-      const B reported = xsimd::select(coincident_[u], lambda_coincident_[u],
-                                       xsimd::min(xsimd::max(newton_lambda, lo_[u]), hi_[u]));
+      // round-off, and the bracket's end is then the better estimate) and
+      // below 1 (as lambda itself).
+      const B reported = xsimd::select(
+          coincident_[u], lambda_coincident_[u],
+          xsimd::min(xsimd::min(xsimd::max(newton_lambda, lo_[u]), hi_[u]), this->below_one()));
       write_answer(out, u, e, answer.s, reported);
       write_statuses<Arch, T>(out.status, at_[u], finished);
 
-      const M unfinished = live_[u] & !finished & !hopeless;
+      // (A lane done whose answer is not usable is neither: the reference path.)
+      const M unfinished = live_[u] & !done & !coincident_[u] & !hopeless;
       if (handoff == Handoff::adaptive && xsimd::any(unfinished)) {
         // A register with many unfinished lanes is packed right away (one
         // masked compress per array); one with a few leaves them by position,

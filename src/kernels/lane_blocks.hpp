@@ -41,6 +41,25 @@ struct KernelTolerance<double> {
   // the returned lambda, to ~1e-11 on its family).
   static constexpr double corrected_gain_with_lambda = 1e-13;
   static constexpr double bounded_gain = 4 * std::numeric_limits<double>::epsilon();
+  // The corrected answer f + gain errs by the third-order term of the Newton
+  // model, ~(1/3) |g''/g'| |step| gain. Near the ends of [0, 1], where g has
+  // near poles (lambda* close to 0 or 1: very different sizes), g''/g' is
+  // ~3 / min(lambda, 1 - lambda) = 3 / w, so the error is ~gain |step| / w:
+  // accepted when that is below this many eps of f.
+  static constexpr double third_order = std::numeric_limits<double>::epsilon();
+  // When lambda (or the geometry) is asked for, the Newton step must also be
+  // this small relative to w: the reported lambda, the step's, then errs by
+  // ~|g''/(2 g')| step^2 ~ 1.5 (step / w)^2 w, ~1e-12 w.
+  static constexpr double lambda_step = 0x1p-20;
+  // Lanes the kernels take (in_range): both forms within this factor of the
+  // larger one's scale (largest diagonal entry D), and |r|^2 within these
+  // factors of D. Within them the full kernel's quantities, of degree -1 to 1
+  // in the length scale, stay within ~2^+-350 of D^+-1 whatever the forms'
+  // conditioning the definiteness test allows (~2^42), and the overlap
+  // kernel's accurate solve (|r|^4, r^T Q r) within 2^+-600. Others go to the
+  // reference path, which scales r and Q separately.
+  static constexpr double form_ratio = 0x1p-100;
+  static constexpr double distance_squared_low = 0x1p-200, distance_squared_high = 0x1p200;
   // Inputs whose largest diagonal entry lies in this range are solved as
   // they are; others are first rescaled. The widest products the kernels
   // form (n det in the initial guess and the overlap bounds) are of degree 12
@@ -59,6 +78,12 @@ struct KernelTolerance<float> {
   static constexpr float corrected_gain = 1e-5f;
   static constexpr float corrected_gain_with_lambda = 1e-7f;
   static constexpr float bounded_gain = 4 * std::numeric_limits<float>::epsilon();
+  static constexpr float third_order = std::numeric_limits<float>::epsilon();
+  // lambda within ~1.5 (2^-11)^2 w ~ 4e-7 w: the float floor of lambda.
+  static constexpr float lambda_step = 0x1p-11f;
+  // (float's range is 2^+-126: quantities within ~2^+-61 of D^+-1)
+  static constexpr float form_ratio = 0x1p-24f;
+  static constexpr float distance_squared_low = 0x1p-24f, distance_squared_high = 0x1p24f;
   static constexpr float safe_scale_low = 0x1p-10f, safe_scale_high = 0x1p10f;
   // A float lane whose factorisation shows element growth above this is
   // finished in double: beyond it float can lose more than ~1e-5 (measured on
@@ -112,6 +137,25 @@ template <class B>
 PWCONTACT_INLINE B largest_diagonal(const PairLanes<B>& p) {
   return xsimd::max(xsimd::max(xsimd::max(p.q1[0], p.q1[3]), p.q1[5]),
                     xsimd::max(xsimd::max(p.q2[0], p.q2[3]), p.q2[5]));
+}
+
+// Whether the kernels' arithmetic holds a lane's numbers (see
+// KernelTolerance::form_ratio), with the limits of lanes of type Limits:
+// both forms within form_ratio of the larger's scale, and the centres either
+// coincident (exactly) or |r|^2 within the distance range of that scale.
+// Lanes outside go to the reference path: never an overflow, an underflow
+// or a float lane's r rounded to zero answered as valid.
+template <class Limits, class B>
+PWCONTACT_INLINE auto in_range(const PairLanes<B>& p) {
+  using Tolerance = KernelTolerance<Limits>;
+  const B m1 = xsimd::max(xsimd::max(p.q1[0], p.q1[3]), p.q1[5]);
+  const B m2 = xsimd::max(xsimd::max(p.q2[0], p.q2[3]), p.q2[5]);
+  const B largest = xsimd::max(m1, m2), smallest = xsimd::min(m1, m2);
+  const B rr = p.r[0] * p.r[0] + p.r[1] * p.r[1] + p.r[2] * p.r[2];
+  const auto coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+  return (smallest >= largest * B(Tolerance::form_ratio)) &
+         (coincident | ((rr >= largest * B(Tolerance::distance_squared_low)) &
+                        (rr <= largest * B(Tolerance::distance_squared_high))));
 }
 
 // Nondimensionalises by a power of two (exact): r -> r t, Q -> Q t^2 with
@@ -188,7 +232,11 @@ PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLane
     // Always scaled before narrowing: float's range is narrower than the
     // double kernels' safe range, and a pair and its power-of-two multiples
     // must round to the same floats (then they get the same answer).
-    const D scale_lo = nondimensionalise(lo, true), scale_hi = nondimensionalise(hi, true);
+    // A lane out of float's range is marked by a zero scale (not usable),
+    // decided in double: narrowing could round its r to zero.
+    D scale_lo = nondimensionalise(lo, true), scale_hi = nondimensionalise(hi, true);
+    scale_lo = xsimd::select(in_range<float>(lo), scale_lo, D(0));
+    scale_hi = xsimd::select(in_range<float>(hi), scale_hi, D(0));
     for (int k = 0; k < pair_components; ++k)
       component(p, k) = narrow<Arch>(component(lo, k), component(hi, k));
     scale = narrow<Arch>(scale_lo, scale_hi);
@@ -425,7 +473,11 @@ class LaneGroups {
   // float's range are left to the reference path).
   PWCONTACT_INLINE M usable(int u) const {
     return this->real_lanes(u) & all_finite(pair_[u]) & (scale_[u] > B(0)) &
-           (scale_[u] < B(std::numeric_limits<T>::infinity()));
+           (scale_[u] < B(std::numeric_limits<T>::infinity())) & in_range<T>(pair_[u]);
+  }
+
+  static PWCONTACT_INLINE B below_one() {
+    return B(T(1) - std::numeric_limits<T>::epsilon() / 2);
   }
 
   void count_evaluations(int evaluations) {
@@ -442,7 +494,10 @@ class LaneGroups {
     lo_[u] = xsimd::select(e.g < B(0), e.lambda, lo_[u]);
     const B next = settings_.formulation == Formulation::log_odds ? log_odds_step(e) : newton_step(e);
     const M newton = (lo_[u] <= next) & (next <= hi_[u]);
-    lambda_[u] = xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5));
+    // Never 1 itself, where f = 0: the largest number below 1 stands for a
+    // maximiser beyond it, to a relative eps in f (concavity; see the
+    // reference path).
+    lambda_[u] = xsimd::min(xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5)), below_one());
     return newton;
   }
 

@@ -133,8 +133,9 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B t1 = p.q1[0] + p.q1[3] + p.q1[5], t2 = p.q2[0] + p.q2[3] + p.q2[5];
       const M conditioned = (t1 * t1 * t1 <= conditioning * a1.det) &
                             (t2 * t2 * t2 <= conditioning * a2.det);
+      const B rr = dot3(p.r, p.r);
       live_[u] = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
-                 conditioned;
+                 conditioned & prefilter_in_range(t1, t2, rr);
       const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);
       // Radial extents: mu^2 <= 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 with
       // s_i = n_i / det_i, n_i = r^T adj(Qi) r; support extents:
@@ -142,7 +143,6 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B n1 = a1.form(p.r), n2 = a2.form(p.r);
       const B extents = xsimd::sqrt(n1 * a2.det) + xsimd::sqrt(n2 * a1.det);
       const B radial = n1 * n2 / (extents * extents);
-      const B rr = dot3(p.r, p.r);
       const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
       lower_[u] = rr * rr / (support * support) * (B(1) - margin);
       upper_[u] = radial * (B(1) + margin);
@@ -195,6 +195,24 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   }
 
  private:
+  // The cheap pass forms products of degree up to 12 in the length scale
+  // (n_i det_j, n1 n2, |r|^4): it takes only lanes whose numbers keep them
+  // within the type's normal range, decided from the traces (the larger
+  // t_max within [D, 3 D] of the scale D) and |r|^2. With both traces within
+  // a factor 2^-100 (float: 2^-16) of each other, |r|^2 within 2^+-200
+  // (2^+-16) of t_max, t_max within 2^+-30 (2^+-4) of 1 and cond(Q) <= 1e6
+  // (256), those products stay within 2^+-800 (2^+-115). The other lanes go
+  // to the accurate solve, whose quantities are of degree -1 to 4.
+  static PWCONTACT_INLINE M prefilter_in_range(const B& t1, const B& t2, const B& rr) {
+    constexpr bool single = std::is_same<T, float>::value;
+    const B ratio(single ? T(0x1p-16) : T(0x1p-100));
+    const B low(single ? T(0x1p-16) : T(0x1p-200)), high(single ? T(0x1p16) : T(0x1p200));
+    const B smallest(single ? T(0x1p-4) : T(0x1p-30)), largest(single ? T(0x1p4) : T(0x1p30));
+    const B t_max = xsimd::max(t1, t2);
+    return (xsimd::min(t1, t2) >= ratio * t_max) & (rr >= low * t_max) & (rr <= high * t_max) &
+           (t_max >= smallest) & (t_max <= largest);
+  }
+
   // One evaluation at lambda: f bounds mu^2 from below, and the tangents of
   // the concave f at the bracket ends, where they cross, from above.
   PWCONTACT_INLINE void tighten(int u) {

@@ -57,26 +57,44 @@ PWCONTACT_INLINE Ldlt<B> factor(const B a[6]) {
   return f;
 }
 
-// The kernels answer only for Q positive definite beyond doubt, with a
-// margin on the rounding of each pivot 64 times the reference path's (see
-// Ldlt3::positive_definite there): a Q near the boundary goes to the
-// reference path, which decides, so that the kernels never call valid a pair
-// the reference path would reject.
+// The magnitudes whose rounding a pivot of Q = L D L^T carries: its own
+// terms and what it inherits from the earlier pivots (the bound derived at
+// detail::definiteness in reference.hpp): for d1 = a3 - l10 a1,
+// C1 = a3 + |l10 a1|, and for d2 = a5 - l20 a2 - l21 t (t = l21 d1),
+// C2 = a5 + |l20 a2| + l21^2 (d1 + C1) + |l21| (|a4| + |l20 a1|).
+// The rounding error of d_i is at most ~2 eps C_i.
+template <class B>
+PWCONTACT_INLINE void pivot_terms(const Ldlt<B>& f, const B a[6], B& cancelled1, B& cancelled2) {
+  cancelled1 = a[3] + xsimd::abs(f.l10 * a[1]);
+  cancelled2 = a[5] + xsimd::abs(f.l20 * a[2]) + f.l21 * f.l21 * (f.d1 + cancelled1) +
+               xsimd::abs(f.l21) * (xsimd::abs(a[4]) + xsimd::abs(f.l20 * a[1]));
+}
+
+// The kernels answer only for Q positive definite beyond doubt: every pivot
+// above 1024 eps times the terms it carries (512 times its rounding bound),
+// and above an absolute floor for what underflow could lose. A Q near the
+// boundary goes to the reference path, which decides exactly, so that the
+// kernels never call valid a pair the reference path would reject.
 template <class T>
 inline constexpr T definiteness_margin = 1024 * std::numeric_limits<T>::epsilon();
+template <class T>
+inline constexpr T underflow_floor = 16 * std::numeric_limits<T>::min();
 
 template <class B>
 PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f, const B a[6]) {
   using T = typename B::value_type;
-  const B margin(definiteness_margin<T>);
-  const B cancelled1 = a[3] + xsimd::abs(f.l10 * a[1]);
-  const B cancelled2 = a[5] + xsimd::abs(f.l20 * a[2]) + f.l21 * f.l21 * f.d1;
-  return (f.d0 > B(0)) & (f.d1 > margin * cancelled1) & (f.d2 > margin * cancelled2);
+  const B margin(definiteness_margin<T>), floor(underflow_floor<T>);
+  B cancelled1, cancelled2;
+  pivot_terms(f, a, cancelled1, cancelled2);
+  return (f.d0 > floor) & (f.d1 > margin * cancelled1 + floor) &
+         (f.d2 > margin * cancelled2 + floor);
 }
 
 // The largest ratio of the magnitudes that cancel in a pivot to the pivot:
 // the factor by which rounding errors in Q are amplified in rᵀQ⁻¹r
 // (measured: relative error of f below ~100 growth eps, p99 ~3 growth eps).
+// An empirical measure of the error of f, calibrated with the margins that
+// use it; the definiteness test above uses the rigorous pivot_terms.
 template <class B>
 PWCONTACT_INLINE B growth(const Ldlt<B>& f, const B a[6]) {
   // d1 = a3 - l10 a1 and d2 = a5 - l20 a2 - l21 t with t = l21 d1.
@@ -144,11 +162,16 @@ struct Adjugate {
   auto positive_definite(const B a[6]) const {
     using T = typename B::value_type;
     const B margin(definiteness_margin<T>);
+    // Every cofactor errs by at most ~2 eps the magnitudes of its two
+    // products, and det by ~5 eps the sum below (absolute values throughout:
+    // a negative a5 must not shrink the bound).
+    const B floor(underflow_floor<T>);
     const B minor_terms = a[0] * a[3] + a[1] * a[1];
-    const B det_terms = a[0] * (a[3] * a[5] + a[4] * a[4]) +
+    const B det_terms = a[0] * (xsimd::abs(a[3] * a[5]) + a[4] * a[4]) +
                         xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
                         xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
-    return (a[0] > B(0)) & (c22 > margin * minor_terms) & (det > margin * det_terms);
+    return (a[0] > floor) & (c22 > margin * minor_terms + floor) &
+           (det > margin * det_terms + floor);
   }
 };
 

@@ -27,9 +27,12 @@ constexpr int cells_per_reach = 1;
 }  // namespace
 
 int CellLists::cell_of(const ClassGrid& grid, int k, double x) const {
+  // Clamped before the conversion, which is undefined beyond int's range:
+  // clamping keeps particles within a reach of each other within span cells
+  // of each other (it is monotone and shrinks distances), so no pair is lost.
   const int n = grid.cells[k];
-  const int c = int((box.periodic ? x : x - origin[k]) * grid.inverse_side[k]);
-  return c >= n ? n - 1 : (c < 0 ? 0 : c);
+  const double c = (box.periodic ? x : x - origin[k]) * grid.inverse_side[k];
+  return c >= double(n - 1) ? n - 1 : (c > 0 ? int(c) : 0);
 }
 
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
@@ -159,10 +162,9 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     CoarseMember& coarse = grid.coarse[at];
     Member& member = grid.member[at];
     for (int k = 0; k < 3; ++k) {
-      const double x = particles.centre(k)[i];
-      coarse.wrapped[k] = lists.wrapped(k, x);
-      member.position[k] = x;
-      member.image[k] = box.periodic ? std::int32_t(std::floor(x / box.length[k])) : 0;
+      const double w = lists.wrapped(k, particles.centre(k)[i]);
+      coarse.wrapped[k] = w;
+      member.position[k] = w;
     }
     coarse.reach = cutoff * bounding[i];
     for (int k = 0; k < 6; ++k) member.q[k] = particles.q(k)[i];

@@ -38,17 +38,14 @@ struct CoarseMember {
 };
 
 // The rest of a member, read only for the pairs that pass the coarse test
-// (a few in a hundred), in two cache lines: its index, the centre as given
-// with the number of box lengths that wraps it (so that a pair's r12 is the
-// plain difference of its centres plus one multiple of the box length,
-// rounded once: wrapped coordinates would cost eps L of it), its radii, and
-// its form.
+// (a few in a hundred), in two cache lines: its index, its centre (wrapped
+// into the box when periodic, the same numbers as the coarse test's), its
+// radii, and its form.
 struct alignas(64) Member {
   double position[3];
   double bounding, inscribed, sphere;
   double q[6];
-  std::int32_t image[3];  // floor(x / L) per axis (periodic), else 0
-  std::uint32_t index;    // in the particle store
+  std::uint32_t index;  // in the particle store
 };
 
 // One class's grid: its members sorted by cell (counting sort, stable, so
@@ -80,10 +77,14 @@ struct CellLists {
   bool identical_shapes = false;
 
   // A coordinate wrapped into [0, L] when periodic (as given otherwise).
+  // fmod is exact: the residue of the stored number, whatever its number of
+  // box lengths (no image count that could overflow, no rounding of a large
+  // x - n L); a negative residue then takes one rounding, to eps L, in adding L.
   double wrapped(int k, double x) const {
     if (!box.periodic) return x;
     const double l = box.length[k];
-    return x - l * std::floor(x / l);
+    const double w = std::fmod(x, l);
+    return w < 0 ? w + l : w;
   }
   // The cell of a (wrapped) coordinate along axis k.
   int cell_of(const ClassGrid& grid, int k, double x) const;
@@ -212,8 +213,7 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
               c.j = &j;
               for (int k = 0; k < 3; ++k) {
                 c.r[k] = j.position[k] - i.position[k];
-                const int lengths = shift[k] - (j.image[k] - i.image[k]);
-                if (lengths != 0) c.r[k] += double(lengths) * box.length[k];
+                if (shift[k] != 0) c.r[k] += double(shift[k]) * box.length[k];
               }
               if (nearest_image)
                 for (int k = 0; k < 3; ++k)

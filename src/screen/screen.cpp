@@ -77,7 +77,9 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
     t.last = contact_function_batch(t.batch.view(), {t.mu2.data(), nullptr, t.status.data()},
                                     batch_options);
     for (std::size_t at = 0; at < n; ++at)
-      if (is_valid(t.status[at]) && t.mu2[at] < cutoff2) {
+      // (A mu^2 below the normal range, out_of_range, is a pair found.)
+      if ((is_valid(t.status[at]) || t.status[at] == Status::out_of_range) &&
+          t.mu2[at] < cutoff2) {
         t.found.push_back(pair_key(t.undecided[at].i, t.undecided[at].j));
         t.found_mu2.push_back(t.mu2[at]);
       }
@@ -89,7 +91,8 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
       if (t.overlap[at]) t.found.push_back(pair_key(t.undecided[at].i, t.undecided[at].j));
   }
   t.solved += n;
-  t.invalid += t.last.invalid;
+  // Pairs whose mu^2 is out of range are answered (found or not): not invalid here.
+  t.invalid += t.last.invalid - t.last.status_counts[int(Status::out_of_range)];
   t.fallbacks += t.last.fallbacks;
   t.evaluations += t.last.mean_evaluations * double(n);
   t.undecided.clear();
@@ -148,7 +151,8 @@ inline bool apart_by_projections(const Side& p, const Side& o, const double r[3]
   constexpr double eps = std::numeric_limits<double>::epsilon();
   const double sp = form_value(p.q, r) + 64 * eps * p.bounding * p.bounding * rr;
   const double so = form_value(o.q, r) + 64 * eps * o.bounding * o.bounding * rr;
-  return rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
+  // Coincident centres (rr = 0, both sides 0) are the most overlapping pair.
+  return rr > 0 && rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
 }
 
 // The pair (p, o) with r = c_o - c_p that the bounding spheres left: pairs of
