@@ -302,8 +302,8 @@ bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T
       if (bits & kernels::with_gradient) out.gradient[k][i] = T(g.gradient[k]);
     }
   }
-  // (mu^2 = 0 with status ok is the exact answer for coincident centres.)
-  const bool coincident = ref.status == Status::ok && ref.mu2 == 0;
+  // (mu^2 = 0 is the exact answer for coincident centres.)
+  const bool coincident = p.r[0] == 0 && p.r[1] == 0 && p.r[2] == 0;
   if (solved)
     status[i] = coincident || detail::range_status(out.mu2[i]) == Status::ok ? Status::ok_fallback
                                                                               : Status::out_of_range;

@@ -27,7 +27,6 @@ namespace pwtest {
 namespace {
 
 using pwcontact::Precision;
-using MatrixL = Eigen::Matrix<long double, 3, 3>;
 
 class Extremes : public ::testing::TestWithParam<Isa> {};
 INSTANTIATE_TEST_SUITE_P(EverySupportedIsa, Extremes, ::testing::ValuesIn(isas()), isa_param_name);
@@ -46,27 +45,6 @@ std::string what(const std::string& set, Isa isa, Precision precision) {
 
 // ---------------------------------------------------------------------------
 // Building extreme pairs
-
-using Engine = std::mt19937_64;
-
-double uniform01(Engine& engine) { return double(engine() >> 11) * 0x1.0p-53; }
-
-// Uniform in [0.5, 2]: a semi-axis of the random family.
-double ordinary_axis(Engine& engine) { return 0.5 + 1.5 * uniform01(engine); }
-
-// Semi-axes a along the axes of a random rotation.
-pwcontact::QuadraticForm oriented(const std::array<double, 3>& a, Engine& engine) {
-  const Eigen::Matrix3d r = random_rotation(engine);
-  const Eigen::Vector3d squares(a[0] * a[0], a[1] * a[1], a[2] * a[2]);
-  return pack(r * squares.asDiagonal() * r.transpose());
-}
-
-// A random shape of the random family, its semi-axes multiplied by `size`.
-pwcontact::QuadraticForm ordinary_shape(Engine& engine, double size = 1) {
-  return oriented(
-      {size * ordinary_axis(engine), size * ordinary_axis(engine), size * ordinary_axis(engine)},
-      engine);
-}
 
 // Two shapes along a random direction, at a distance where mu is uniform in
 // [0.5, 2] (scaled from the long double oracle of a first placement at
@@ -88,14 +66,6 @@ struct Solved {
   std::vector<ContactResult<long double>> exact;
   std::vector<double> condition;  // infinite where Q(lambda*) is not positive definite
 };
-
-double condition_at(const Pair<double>& p, long double lambda) {
-  const MatrixL q =
-      (1 - lambda) * unpack(p.q1).cast<long double>() + lambda * unpack(p.q2).cast<long double>();
-  const auto eigenvalues = Eigen::SelfAdjointEigenSolver<MatrixL>(q).eigenvalues();
-  if (!(eigenvalues[0] > 0)) return std::numeric_limits<double>::infinity();
-  return double(eigenvalues[2] / eigenvalues[0]);
-}
 
 Solved solved(std::vector<Pair<double>> pairs) {
   Solved out{std::move(pairs), {}, {}};
@@ -560,7 +530,7 @@ TEST_P(Extremes, IdenticalEllipsoidsGiveLambdaOneHalfAndAQuarterOfTheRadialForm)
     MaxError ratio, lambda_error;
     for (std::size_t i = 0; i < pairs.size(); ++i) {
       const Pair<double>& p = pairs[i];
-      const MatrixL q = unpack(p.q1).cast<long double>();
+      const Eigen::Matrix<long double, 3, 3> q = unpack(p.q1).cast<long double>();
       const Vector3L r(p.r12[0], p.r12[1], p.r12[2]);
       const long double exact = r.dot(q.ldlt().solve(r)) / 4;
       const double condition = condition_at(p, 0.5L);

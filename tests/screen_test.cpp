@@ -275,6 +275,114 @@ TEST(Screen, IdenticalShapesAreDetectedAndMatchTheBruteForce) {
                    .identical_shapes);
 }
 
+// A scene of the spec whose last `planted` particles (other shapes) sit
+// exactly on the centres of earlier ones: coincident centres, the most
+// overlapping pairs there are.
+ParticleStore scene_with_coincident_centres(const SceneSpec& spec, std::size_t planted) {
+  const ParticleStore base = make_scene(spec);
+  std::mt19937_64 engine(spec.seed + 100);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore store;
+  for (std::size_t i = 0; i < base.size(); ++i) {
+    std::array<double, 6> q;
+    for (int k = 0; k < 6; ++k) q[k] = base.q(k)[i];
+    const std::size_t from = i >= base.size() - planted ? i - (base.size() - planted) : i;
+    store.add({base.centre(0)[from], base.centre(1)[from], base.centre(2)[from]}, q);
+  }
+  return store;
+}
+
+TEST(Screen, CoincidentCentresAreFoundWithAndWithoutMu2) {
+  // Was: with mu^2 the projection prefilter's test read 0 >= 0 at r12 = 0
+  // and dropped every such pair of non-spherical particles.
+  const SceneSpec spec{2000, 0.3, 3, 0.2, 0.6, 14.0, true, 41};
+  const ParticleStore s = scene_with_coincident_centres(spec, 50);
+  const Box box = box_of(spec);
+  for (bool with_mu2 : {false, true}) {
+    ScreenedPairs got;
+    screen(s, box, 1, got, with_mu2);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> found;
+    for (std::size_t k = 0; k < got.size(); ++k) found.insert({got.i[k], got.j[k]});
+    for (std::uint32_t k = 0; k < 50; ++k)
+      EXPECT_TRUE(found.count({k, std::uint32_t(spec.particles - 50 + k)}))
+          << "coincident pair " << k << (with_mu2 ? ", with mu2" : "");
+    compare(s, box, 1, got, with_mu2 ? "coincident centres, with mu2" : "coincident centres");
+  }
+}
+
+TEST(Screen, NearlyCoincidentCentresWhoseMu2UnderflowsAreFound) {
+  // mu^2 below the smallest normal number (|r12| ~ 1e-170): out of the batch
+  // path's range, but an overlap all the same.
+  ParticleStore s;
+  s.add_axes({1, 1, 1}, {0.3, 0.5, 1}, {1, 0.2, 0.3, 0.4});
+  s.add_axes({1 + 1e-170, 1, 1}, {0.2, 0.7, 0.4}, {0.3, 1, 0.2, 0.1});
+  s.add_axes({5, 5, 5}, {0.3, 0.5, 1}, {1, 0, 0, 0});
+  for (bool with_mu2 : {false, true}) {
+    ScreenedPairs got;
+    const ScreenReport report = screen(s, Box::periodic_box(10, 10, 10), 1, got, with_mu2);
+    ASSERT_EQ(got.size(), 1u) << (with_mu2 ? "with mu2" : "");
+    EXPECT_EQ(got.i[0], 0u);
+    EXPECT_EQ(got.j[0], 1u);
+    EXPECT_EQ(report.invalid, 0u);
+    if (with_mu2) {
+      EXPECT_LT(got.mu2[0], 1e-300);
+    }
+  }
+}
+
+TEST(Screen, PeriodicCoordinatesBillionsOfBoxLengthsAwayGiveTheSamePairs) {
+  // Was: image counts in 32 bits, pairs missed beyond 2^31 box lengths.
+  // Centres on a grid of 2^-8 in a box of 8, moved by n box lengths with |n|
+  // from 0 to 2^40 per axis: every coordinate exact, and its residue in the box
+  // the unmoved one, so the pairs and their mu^2 must be the same bits.
+  std::mt19937_64 engine(51);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  ParticleStore near, far;
+  for (int n = 0; n < 1500; ++n) {
+    std::array<double, 3> centre, moved;
+    for (int k = 0; k < 3; ++k) {
+      centre[k] = std::floor(unit(engine) * 2048) / 256;  // [0, 8) on a grid of 2^-8
+      // 0 .. 2^40 box lengths, about half of them beyond 2^31.
+      const double lengths = std::floor(std::ldexp(unit(engine), int(unit(engine) * 41)));
+      moved[k] = centre[k] + (unit(engine) < 0.5 ? -8 : 8) * lengths;
+    }
+    const std::array<double, 3> axes = {0.2 + 0.3 * unit(engine), 0.3, 0.2 + 0.4 * unit(engine)};
+    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine), normal(engine)};
+    near.add_axes(centre, axes, q);
+    far.add_axes(moved, axes, q);
+  }
+  const Box box = Box::periodic_box(8, 8, 8);
+  for (bool with_mu2 : {false, true}) {
+    ScreenedPairs a, b;
+    screen(near, box, 1, a, with_mu2);
+    screen(far, box, 1, b, with_mu2);
+    ASSERT_EQ(a.size(), b.size()) << (with_mu2 ? "with mu2" : "");
+    for (std::size_t k = 0; k < a.size(); ++k) {
+      EXPECT_EQ(a.i[k], b.i[k]);
+      EXPECT_EQ(a.j[k], b.j[k]);
+      if (with_mu2) {
+        EXPECT_EQ(a.mu2[k], b.mu2[k]);
+      }
+    }
+    EXPECT_GT(a.size(), 100u);
+  }
+  ScreenedPairs a;
+  screen(near, box, 1, a);
+  compare(near, box, 1, a, "grid scene in a box of 8");
+  // Two spheres of radius 0.3 whose residues are 0.5 apart: one at 0, 3e9
+  // or 1e12 box lengths, the other at -5e9 (the coordinates are exact).
+  for (double lengths : {0.0, 3e9, 1e12}) {
+    ParticleStore pair;
+    pair.add_axes({1 + 8 * lengths, 1, 1}, {0.3, 0.3, 0.3}, {1, 0, 0, 0});
+    pair.add_axes({1.5 - 8 * 5e9, 1, 1}, {0.3, 0.3, 0.3}, {1, 0, 0, 0});
+    ScreenedPairs got;
+    screen(pair, box, 1, got, true);
+    ASSERT_EQ(got.size(), 1u) << lengths << " box lengths";
+    EXPECT_EQ(got.mu2[0], 0.25 / 0.36) << lengths << " box lengths";
+  }
+}
+
 // Identical, aligned ellipsoids (one Q for all) of the given semi-axes,
 // random centres in a periodic box.
 ParticleStore aligned_scene(const std::array<double, 3>& semi_axes, std::size_t n, double box,

@@ -1,5 +1,6 @@
 #include "test_support.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <boost/multiprecision/cpp_bin_float.hpp>
 #include <cerrno>
 #include <cmath>
@@ -559,6 +560,34 @@ Eigen::Matrix3d random_rotation(std::mt19937_64& engine) {
   const Eigen::Quaterniond q(b * std::cos(two_pi * u3), a * std::sin(two_pi * u2),
                              a * std::cos(two_pi * u2), b * std::sin(two_pi * u3));
   return q.normalized().toRotationMatrix();
+}
+
+double uniform01(Engine& engine) { return double(engine() >> 11) * 0x1.0p-53; }
+
+double ordinary_axis(Engine& engine) { return 0.5 + 1.5 * uniform01(engine); }
+
+pwcontact::QuadraticForm oriented(const std::array<double, 3>& a, const Eigen::Matrix3d& rotation) {
+  const Eigen::Vector3d squares(a[0] * a[0], a[1] * a[1], a[2] * a[2]);
+  return pack(rotation * squares.asDiagonal() * rotation.transpose());
+}
+
+pwcontact::QuadraticForm oriented(const std::array<double, 3>& a, Engine& engine) {
+  return oriented(a, random_rotation(engine));
+}
+
+pwcontact::QuadraticForm ordinary_shape(Engine& engine, double size) {
+  return oriented(
+      {size * ordinary_axis(engine), size * ordinary_axis(engine), size * ordinary_axis(engine)},
+      engine);
+}
+
+double condition_at(const Pair<double>& p, long double lambda) {
+  using MatrixL = Eigen::Matrix<long double, 3, 3>;
+  const MatrixL q =
+      (1 - lambda) * unpack(p.q1).cast<long double>() + lambda * unpack(p.q2).cast<long double>();
+  const auto eigenvalues = Eigen::SelfAdjointEigenSolver<MatrixL>(q).eigenvalues();
+  if (!(eigenvalues[0] > 0)) return std::numeric_limits<double>::infinity();
+  return double(eigenvalues[2] / eigenvalues[0]);
 }
 
 Pair<double> rotated(const Pair<double>& p, const Eigen::Matrix3d& rotation) {

@@ -397,6 +397,24 @@ Pair<double> scaled(const Pair<double>& p, double k);
 // The two ellipsoids exchanged: Q1 <-> Q2 and r12 -> -r12.
 Pair<double> swapped(const Pair<double>& p);
 
+// Random numbers that are the same on every platform (std:: distributions
+// are not).
+using Engine = std::mt19937_64;
+// Uniform in [0, 1).
+double uniform01(Engine& engine);
+// Uniform in [0.5, 2]: a semi-axis of the random family.
+double ordinary_axis(Engine& engine);
+// Semi-axes a along the axes of a rotation (a random one from the engine).
+pwcontact::QuadraticForm oriented(const std::array<double, 3>& a, const Eigen::Matrix3d& rotation);
+pwcontact::QuadraticForm oriented(const std::array<double, 3>& a, Engine& engine);
+// A random shape of the random family, its semi-axes multiplied by `size`.
+pwcontact::QuadraticForm ordinary_shape(Engine& engine, double size = 1);
+
+// The condition number of Q(lambda) = (1 - lambda) Q1 + lambda Q2 (eq. 10)
+// in long double, infinite where it is not positive definite: at the exact
+// maximiser, what bounds the accuracy of any solve in floating point.
+double condition_at(const Pair<double>& p, long double lambda);
+
 // A pair from its centre separation and two quadratic forms.
 Pair<double> make_pair(const std::array<double, 3>& r, const pwcontact::QuadraticForm& q1,
                        const pwcontact::QuadraticForm& q2);

@@ -83,6 +83,11 @@ struct CellLists {
   double wrapped(int k, double x) const {
     if (!box.periodic) return x;
     const double l = box.length[k];
+    // The common cases first, with fmod's results: within one box length of
+    // the box, fmod(x, l) is x or x - l (exact).
+    if (x >= 0 && x < l) return x;
+    if (x < 0 && x >= -l) return x + l;
+    if (x >= l && x < 2 * l) return x - l;
     const double w = std::fmod(x, l);
     return w < 0 ? w + l : w;
   }
