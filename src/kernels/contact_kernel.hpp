@@ -206,9 +206,11 @@ class FullBlock : public LaneGroups<Arch, T> {
       lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
-      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2);
       // Coincident centres: mu^2 = 0.
-      coincident_[u] = live_[u] & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+      const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2) &
+                 (coincident | slopes_in_range(s1, s2));
+      coincident_[u] = live_[u] & coincident;
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
   }
@@ -240,7 +242,8 @@ class FullBlock : public LaneGroups<Arch, T> {
       lambda_[u] = xsimd::select((start > B(0)) & (start < B(1)), start, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
-      live_[u] = this->usable(u) & Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
+      live_[u] = this->usable(u) & in_range<T>(pair_[u]) &
+                 Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
                  Adjugate<B>(pair_[u].q2).positive_definite(pair_[u].q2);
       coincident_[u] = live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) &
                        (pair_[u].r[2] == B(0));
@@ -319,8 +322,8 @@ class FullBlock : public LaneGroups<Arch, T> {
       const B gain = B(0.5) * e.g * step;
       const B width = xsimd::min(e.lambda, e.mu);
       const B abs_step = xsimd::abs(step);
-      M small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
-      if (settings_.outputs == 0) small_step = B(0) == B(0);
+      M small_step = B(0) == B(0);
+      if (settings_.outputs != 0) small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
       const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f) &
                           (gain * abs_step <= B(KernelTolerance<T>::third_order) * width * e.f) &
                           small_step;
@@ -340,20 +343,18 @@ class FullBlock : public LaneGroups<Arch, T> {
       if (settings_.accuracy == Accuracy::high)
         answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
-      // A valid answer is finite and positive (f > 0 inside (0, 1) for
-      // distinct centres): anything else the arithmetic produced goes to the
-      // reference path, whatever the tests above said.
-      const M finished = live_[u] & ((done & (answer.f > B(0)) &
-                                      (answer.f < B(std::numeric_limits<T>::infinity()))) |
-                                     coincident_[u]);
+      // A valid answer is positive (f > 0 inside (0, 1) for distinct
+      // centres; finite, as every quantity of a lane in range): anything else
+      // the arithmetic produced (lambda rounded onto 0 or 1, where f = 0)
+      // goes to the reference path, whatever the tests above said.
+      const M finished = live_[u] & ((done & (answer.f > B(0))) | coincident_[u]);
       write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
-      // The reported lambda is the Newton step's, kept in the bracket (for a
+      // The reported lambda is the Newton step's, kept in the bracket: for a
       // lane finished by the bound the step may leave the bracket by
-      // round-off, and the bracket's end is then the better estimate) and
-      // below 1 (as lambda itself).
-      const B reported = xsimd::select(
-          coincident_[u], lambda_coincident_[u],
-          xsimd::min(xsimd::min(xsimd::max(newton_lambda, lo_[u]), hi_[u]), this->below_one()));
+      // round-off, and the bracket's end is then the better estimate. (Lanes
+      // in range have lambda* at least ~2^-60 from 0 and 1, ~2^-15 in float.)
+      const B reported = xsimd::select(coincident_[u], lambda_coincident_[u],
+                                       xsimd::min(xsimd::max(newton_lambda, lo_[u]), hi_[u]));
       write_answer(out, u, e, answer.s, reported);
       write_statuses<Arch, T>(out.status, at_[u], finished);
 

@@ -51,13 +51,18 @@ struct KernelTolerance<double> {
   // this small relative to w: the reported lambda, the step's, then errs by
   // ~|g''/(2 g')| step^2 ~ 1.5 (step / w)^2 w, ~1e-12 w.
   static constexpr double lambda_step = 0x1p-20;
-  // Lanes the kernels take (in_range): both forms within this factor of the
-  // larger one's scale (largest diagonal entry D), and |r|^2 within these
-  // factors of D. Within them the full kernel's quantities, of degree -1 to 1
-  // in the length scale, stay within ~2^+-350 of D^+-1 whatever the forms'
-  // conditioning the definiteness test allows (~2^42), and the overlap
-  // kernel's accurate solve (|r|^4, r^T Q r) within 2^+-600. Others go to the
-  // reference path, which scales r and Q separately.
+  // Lanes the kernels take: f'(0) = r^T Q1^-1 r and -f'(1) = r^T Q2^-1 r
+  // (the squared distance in units of each ellipsoid's extent along r12)
+  // within these bounds and within this factor of each other (so that the
+  // sizes are at most ~2^60 apart and lambda* at least ~2^-60 from 0 and 1).
+  // Every quantity of a solve, of degree -1 to 1 in the length scale, then
+  // stays within ~2^+-400 of the scale's power, and the overlap kernel's
+  // accurate solve (|r|^4, r^T Q r) within 2^+-600. Others go to the
+  // reference path, which scales r and Q separately. (in_range: the same
+  // from the inputs, where the slopes are not computed: both forms' largest
+  // diagonal entries within form_ratio of the larger D, |r|^2 within the
+  // distance factors of D.)
+  static constexpr double slope_low = 0x1p-240, slope_high = 0x1p240, slope_ratio = 0x1p-120;
   static constexpr double form_ratio = 0x1p-100;
   static constexpr double distance_squared_low = 0x1p-200, distance_squared_high = 0x1p200;
   // Inputs whose largest diagonal entry lies in this range are solved as
@@ -81,7 +86,9 @@ struct KernelTolerance<float> {
   static constexpr float third_order = std::numeric_limits<float>::epsilon();
   // lambda within ~1.5 (2^-11)^2 w ~ 4e-7 w: the float floor of lambda.
   static constexpr float lambda_step = 0x1p-11f;
-  // (float's range is 2^+-126: quantities within ~2^+-61 of D^+-1)
+  // (float's range is 2^+-126: quantities within ~2^+-61 of the scale's
+  // power; sizes at most ~2^15 apart, lambda* at least ~3e-5 from 0 and 1)
+  static constexpr float slope_low = 0x1p-30f, slope_high = 0x1p30f, slope_ratio = 0x1p-30f;
   static constexpr float form_ratio = 0x1p-24f;
   static constexpr float distance_squared_low = 0x1p-24f, distance_squared_high = 0x1p24f;
   static constexpr float safe_scale_low = 0x1p-10f, safe_scale_high = 0x1p10f;
@@ -156,6 +163,18 @@ PWCONTACT_INLINE auto in_range(const PairLanes<B>& p) {
   return (smallest >= largest * B(Tolerance::form_ratio)) &
          (coincident | ((rr >= largest * B(Tolerance::distance_squared_low)) &
                         (rr <= largest * B(Tolerance::distance_squared_high))));
+}
+
+// Whether the kernels' arithmetic holds a lane, from its slopes f'(0) = s1
+// and -f'(1) = s2 (see KernelTolerance::slope_low); coincident centres are
+// decided apart. Lanes outside go to the reference path: never an overflow,
+// an underflow or a lambda* that T cannot resolve answered as valid.
+template <class B>
+PWCONTACT_INLINE auto slopes_in_range(const B& s1, const B& s2) {
+  using Tolerance = KernelTolerance<typename B::value_type>;
+  const B smallest = xsimd::min(s1, s2), largest = xsimd::max(s1, s2);
+  return (smallest >= B(Tolerance::slope_low)) & (largest <= B(Tolerance::slope_high)) &
+         (smallest >= largest * B(Tolerance::slope_ratio));
 }
 
 // Nondimensionalises by a power of two (exact): r -> r t, Q -> Q t^2 with
@@ -470,14 +489,11 @@ class LaneGroups {
 
   // A lane the kernels can answer: finite inputs, and a scale factor that its
   // arithmetic can represent (float lanes on double pairs at scales beyond
-  // float's range are left to the reference path).
+  // float's range are left to the reference path). The blocks add the
+  // range of the lane's numbers (slopes_in_range, in_range).
   PWCONTACT_INLINE M usable(int u) const {
     return this->real_lanes(u) & all_finite(pair_[u]) & (scale_[u] > B(0)) &
-           (scale_[u] < B(std::numeric_limits<T>::infinity())) & in_range<T>(pair_[u]);
-  }
-
-  static PWCONTACT_INLINE B below_one() {
-    return B(T(1) - std::numeric_limits<T>::epsilon() / 2);
+           (scale_[u] < B(std::numeric_limits<T>::infinity()));
   }
 
   void count_evaluations(int evaluations) {
@@ -494,10 +510,7 @@ class LaneGroups {
     lo_[u] = xsimd::select(e.g < B(0), e.lambda, lo_[u]);
     const B next = settings_.formulation == Formulation::log_odds ? log_odds_step(e) : newton_step(e);
     const M newton = (lo_[u] <= next) & (next <= hi_[u]);
-    // Never 1 itself, where f = 0: the largest number below 1 stands for a
-    // maximiser beyond it, to a relative eps in f (concavity; see the
-    // reference path).
-    lambda_[u] = xsimd::min(xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5)), below_one());
+    lambda_[u] = xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5));
     return newton;
   }
 

@@ -75,8 +75,10 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       this->load(in, from, position, index, real, u);
       const PairLanes<B>& p = pair_[u];
       const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
-      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2);
       const B s0 = inverse_quadratic_form(f1, p.r), s1 = inverse_quadratic_form(f2, p.r);
+      const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2) &
+                 (coincident | slopes_in_range(s0, s1));
       const B root0 = xsimd::sqrt(s0), root1 = xsimd::sqrt(s1);
       lambda_[u] = root1 / (root0 + root1);
       lo_[u] = B(0);
@@ -102,7 +104,6 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       lower_[u] = rr * rr / (support * support) * (B(1) - margin_[u]);
       upper_[u] = radial * radial * (B(1) + margin_[u]);
       // Coincident centres: mu^2 = 0 < cutoff^2.
-      const M coincident = !((s0 > B(0)) & (s1 > B(0)));
       upper_[u] = xsimd::select(coincident, B(0), upper_[u]);
       live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter);
     }

@@ -71,23 +71,21 @@ PWCONTACT_INLINE void pivot_terms(const Ldlt<B>& f, const B a[6], B& cancelled1,
 }
 
 // The kernels answer only for Q positive definite beyond doubt: every pivot
-// above 1024 eps times the terms it carries (512 times its rounding bound),
-// and above an absolute floor for what underflow could lose. A Q near the
-// boundary goes to the reference path, which decides exactly, so that the
-// kernels never call valid a pair the reference path would reject.
+// above 1024 eps times the terms it carries (512 times its rounding bound).
+// A Q near the boundary goes to the reference path, which decides exactly,
+// so that the kernels never call valid a pair the reference path would
+// reject. (Underflow, which the bound does not cover, cannot happen in the
+// lanes the kernels keep: their numbers are in range, see slopes_in_range.)
 template <class T>
 inline constexpr T definiteness_margin = 1024 * std::numeric_limits<T>::epsilon();
-template <class T>
-inline constexpr T underflow_floor = 16 * std::numeric_limits<T>::min();
 
 template <class B>
 PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f, const B a[6]) {
   using T = typename B::value_type;
-  const B margin(definiteness_margin<T>), floor(underflow_floor<T>);
+  const B margin(definiteness_margin<T>);
   B cancelled1, cancelled2;
   pivot_terms(f, a, cancelled1, cancelled2);
-  return (f.d0 > floor) & (f.d1 > margin * cancelled1 + floor) &
-         (f.d2 > margin * cancelled2 + floor);
+  return (f.d0 > B(0)) & (f.d1 > margin * cancelled1) & (f.d2 > margin * cancelled2);
 }
 
 // The largest ratio of the magnitudes that cancel in a pivot to the pivot:
@@ -165,13 +163,11 @@ struct Adjugate {
     // Every cofactor errs by at most ~2 eps the magnitudes of its two
     // products, and det by ~5 eps the sum below (absolute values throughout:
     // a negative a5 must not shrink the bound).
-    const B floor(underflow_floor<T>);
     const B minor_terms = a[0] * a[3] + a[1] * a[1];
     const B det_terms = a[0] * (xsimd::abs(a[3] * a[5]) + a[4] * a[4]) +
                         xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
                         xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
-    return (a[0] > floor) & (c22 > margin * minor_terms + floor) &
-           (det > margin * det_terms + floor);
+    return (a[0] > B(0)) & (c22 > margin * minor_terms) & (det > margin * det_terms);
   }
 };
 
