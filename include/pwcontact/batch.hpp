@@ -133,8 +133,10 @@ enum class Precision {
 enum class Accuracy {
   standard,  // plain double (or float): the floor is ~eps times the condition of Q
   high,      // the last evaluation is refined once with an error-free residual
-             // (double-double), which removes the conditioning floor; double or
-             // mixed precision only
+             // (double-double), which squares the conditioning floor: measured
+             // within 16 (eps + (eps cond)^2) for status ok, and 16 (eps +
+             // eps_long_double cond) for the lanes answered by the reference path
+             // in long double (ok_fallback); double or mixed precision only
 };
 
 // The Newton iteration the lanes run (both safeguarded by the same bracket).
@@ -171,7 +173,8 @@ struct BatchReport {
   std::size_t fallbacks = 0;  // valid pairs the kernels left (not finished, or in overlap
                               // mode undecided), answered by the reference path
                               // (status ok_fallback, or not_converged if it failed too)
-  std::size_t invalid = 0;    // pairs whose status is not valid (mu2 is NaN)
+  std::size_t invalid = 0;    // pairs whose status is not valid (mu2 is NaN, or
+                              // out of the type's range: out_of_range)
   std::size_t status_counts[status_count] = {};
   // Overlap-only calls: pairs decided before any Newton evaluation (by the
   // bounds from the radial and support extents), decided by a certificate

@@ -243,7 +243,8 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
              options.accuracy,
              "standard: mu^2 to the floor of the arithmetic (~eps times the condition "
              "of Q); high: the last evaluation refined with an error-free residual, "
-             "which removes that floor (double or mixed precision only)");
+             "which squares that floor, ~eps + (eps cond)^2 (double or mixed "
+             "precision only)");
   add_choice(
       parser, "--formulation",
       Choices<Formulation>{{Formulation::automatic, Formulation::newton, Formulation::log_odds},
