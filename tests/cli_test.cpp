@@ -751,7 +751,9 @@ INSTANTIATE_TEST_SUITE_P(
         "contact --scalar=yes", "contact a.txt b.txt", "contact --scalar --iterations 2 a.txt",
         "pairs --pairs 0", "pairs extra", "demo extra", "demo --n 0", "demo --packing 1",
         "demo --max-aspect 0.5", "screen --box 1 2", "screen --box 1 2 0 a.txt",
-        "screen --box 1 2 x a.txt", "screen --cutoff 0 a.txt", "screen --format xyz a.txt",
+        "screen --box 1 2 x a.txt", "screen --box=1,2 a.txt", "screen --box=1,2,3,4 a.txt",
+        "screen --box=1,x,3 a.txt", "screen --box=1,2,0 a.txt", "screen --box= a.txt",
+        "screen --cutoff 0 a.txt", "screen --format xyz a.txt",
         "screen a.txt b.txt",
         // Bad values of the options of the answer and the arithmetic
         "contact --mode both", "contact --precision auto", "contact --precision",
@@ -891,6 +893,10 @@ TEST_F(cli, ScreenWritesThePairsSortedWithTheirMu2) {
   EXPECT_TRUE(contains(overlaps.err, "candidate pairs")) << overlaps.err;
   const Outcome open = run("screen spheres.txt");
   EXPECT_EQ(open.out, "0 1\n") << "without --box, 0 and 2 are 9 apart";
+  // The --opt=value form of --box (once silently ignored: open boundaries).
+  const Outcome inline_box = run("screen --box=10,10,10 spheres.txt");
+  ASSERT_EQ(inline_box.exit_status, 0) << inline_box.err;
+  EXPECT_EQ(inline_box.out, overlaps.out);
   const Outcome skin = run("screen --box 10 10 10 --cutoff 1.6 --with-mu2 spheres.txt");
   ASSERT_EQ(skin.exit_status, 0) << skin.err;
   EXPECT_EQ(skin.out, "0 1 0.5625\n0 2 0.25\n1 2 1.5625\n1 3 2.25\n");

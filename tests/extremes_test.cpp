@@ -60,23 +60,6 @@ Pair<double> around_contact(const pwcontact::QuadraticForm& q1, const pwcontact:
   return scaled_to_mu2(first, placed.mu2, mu * mu);
 }
 
-// Pairs with their exact answers and the condition of Q(lambda*).
-struct Solved {
-  std::vector<Pair<double>> pairs;
-  std::vector<ContactResult<long double>> exact;
-  std::vector<double> condition;  // infinite where Q(lambda*) is not positive definite
-};
-
-Solved solved(std::vector<Pair<double>> pairs) {
-  Solved out{std::move(pairs), {}, {}};
-  out.exact = fifty_digit_oracles(out.pairs);
-  for (std::size_t i = 0; i < out.pairs.size(); ++i)
-    out.condition.push_back(out.exact[i].status == Status::ok
-                                ? condition_at(out.pairs[i], out.exact[i].lambda)
-                                : std::numeric_limits<double>::infinity());
-  return out;
-}
-
 // Spheroids (1, 1, rho) with rho from 1e-4 (discs) to 1e4 (needles), and
 // spheres, all against all in random orientations: aspect ratios to 1e4,
 // cond(Q) to 1e8.

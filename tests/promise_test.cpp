@@ -42,23 +42,6 @@ std::string what(const std::string& set, Isa isa, Precision precision) {
   return set + ", " + pwcontact::isa_name(isa) + ", " + pwcontact::precision_name(precision);
 }
 
-// Pairs with their exact answers and the condition of Q(lambda*).
-struct Solved {
-  std::vector<Pair<double>> pairs;
-  std::vector<ContactResult<long double>> exact;
-  std::vector<double> condition;  // infinite where there is no answer
-};
-
-Solved solved(std::vector<Pair<double>> pairs) {
-  Solved out{std::move(pairs), {}, {}};
-  out.exact = fifty_digit_oracles(out.pairs);
-  for (std::size_t i = 0; i < out.pairs.size(); ++i)
-    out.condition.push_back(out.exact[i].status == Status::ok
-                                ? condition_at(out.pairs[i], out.exact[i].lambda)
-                                : std::numeric_limits<double>::infinity());
-  return out;
-}
-
 // Each pair with r12 scaled so that mu is uniform in [low, high] (the
 // 50-digit oracle of the pair as given; pairs it rejects are kept).
 std::vector<Pair<double>> placed(const std::vector<Pair<double>>& pairs, Engine& engine,

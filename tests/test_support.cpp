@@ -590,6 +590,16 @@ double condition_at(const Pair<double>& p, long double lambda) {
   return double(eigenvalues[2] / eigenvalues[0]);
 }
 
+Solved solved(std::vector<Pair<double>> pairs) {
+  Solved out{std::move(pairs), {}, {}};
+  out.exact = fifty_digit_oracles(out.pairs);
+  for (std::size_t i = 0; i < out.pairs.size(); ++i)
+    out.condition.push_back(out.exact[i].status == Status::ok
+                                ? condition_at(out.pairs[i], out.exact[i].lambda)
+                                : std::numeric_limits<double>::infinity());
+  return out;
+}
+
 Pair<double> rotated(const Pair<double>& p, const Eigen::Matrix3d& rotation) {
   Pair<double> out;
   const Eigen::Vector3d r = rotation * Eigen::Vector3d(p.r12[0], p.r12[1], p.r12[2]);

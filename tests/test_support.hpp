@@ -415,6 +415,15 @@ pwcontact::QuadraticForm ordinary_shape(Engine& engine, double size = 1);
 // maximiser, what bounds the accuracy of any solve in floating point.
 double condition_at(const Pair<double>& p, long double lambda);
 
+// Pairs with their exact answers (the 50-digit oracle) and the condition of
+// Q(lambda*) at them (infinite where the oracle has no answer).
+struct Solved {
+  std::vector<Pair<double>> pairs;
+  std::vector<ContactResult<long double>> exact;
+  std::vector<double> condition;
+};
+Solved solved(std::vector<Pair<double>> pairs);
+
 // A pair from its centre separation and two quadratic forms.
 Pair<double> make_pair(const std::array<double, 3>& r, const pwcontact::QuadraticForm& q1,
                        const pwcontact::QuadraticForm& q2);

@@ -29,6 +29,21 @@ struct ScreenCommandOptions {
   std::string output = "-";
 };
 
+// "LX,LY,LZ": the lengths of --box=LX,LY,LZ.
+Box parse_box(std::string_view text) {
+  const std::string whole(text);
+  double length[3];
+  for (int a = 0; a < 3; ++a) {
+    const std::size_t comma = text.find(',');
+    if ((a < 2) != (comma != std::string_view::npos))
+      throw std::invalid_argument("'" + whole +
+                                  "' is not three lengths LX,LY,LZ (or give them as --box LX LY LZ)");
+    length[a] = parse_positive_number(text.substr(0, comma));
+    text = a < 2 ? text.substr(comma + 1) : std::string_view();
+  }
+  return Box::periodic_box(length[0], length[1], length[2]);
+}
+
 OptionParser screen_parser(ScreenCommandOptions& options) {
   OptionParser parser(
       "screen",
@@ -58,9 +73,11 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
       "[FILE]", 1, [&options](std::string_view file) { options.input = file; });
   parser.add_value({"--box"}, "LX LY LZ", "open boundaries",
                    "a periodic orthorhombic box with these edge lengths (three numbers, "
-                   "positive and finite), pairs by the minimum image convention; it must be "
-                   "at least twice the largest reach cutoff * 2 R_max along every axis",
-                   [](std::string_view) {});
+                   "positive and finite; or --box=LX,LY,LZ), pairs by the minimum image "
+                   "convention; it must be at least twice the largest reach cutoff * 2 R_max "
+                   "along every axis",
+                   // Only the --box=LX,LY,LZ form reaches here (take_box takes the other).
+                   [&options](std::string_view value) { options.box = parse_box(value); });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
   add_choice(parser, "--format",
