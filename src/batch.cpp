@@ -7,12 +7,14 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "kernels/kernel_api.hpp"
+#include "parallel_errors.hpp"
 #include "pwcontact/batch.hpp"
 #include "pwcontact/reference.hpp"
 
@@ -179,22 +181,24 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
   const ScratchArena arena(report.threads);
   std::uint64_t evaluations = 0, prefilter = 0, certificate = 0;
   ChunkTally total;
+  detail::ParallelErrors errors;  // (nothing in a chunk is expected to throw)
 #pragma omp parallel num_threads(report.threads) reduction(+ : evaluations, prefilter, certificate)
   {
     const kernels::Scratch scratch = arena.for_thread(omp_get_thread_num());
     ChunkTally tally;
 #pragma omp for schedule(dynamic, 1)
-    for (std::size_t c = 0; c < chunks; ++c) {
+    for (std::size_t c = 0; c < chunks; ++c) errors.run([&] {
       const std::size_t begin = c * chunk_pairs;
       kernels::ChunkCounters counters;
       solve_chunk(begin, std::min(chunk_pairs, pairs - begin), scratch, counters, tally);
       evaluations += counters.lane_evaluations;
       prefilter += counters.decided_by_prefilter;
       certificate += counters.decided_by_certificate;
-    }
+    });
 #pragma omp critical(pwcontact_tally)
     total.add(tally);
   }
+  errors.rethrow_if_failed();
   report.fallbacks = total.fallbacks;
   for (int s = 0; s < status_count; ++s) {
     report.status_counts[s] = total.status_counts[s];
@@ -351,6 +355,14 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   if (!(cutoff > 0) || !std::isfinite(cutoff))
     throw std::invalid_argument("overlap_batch: cutoff must be positive and finite, got " +
                                 std::to_string(cutoff));
+  // mu^2 is compared with cutoff^2: it must be a normal number.
+  if (!(cutoff * cutoff >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff * cutoff)) {
+    char text[64];
+    std::snprintf(text, sizeof text, "%.17g", cutoff);
+    throw std::invalid_argument(
+        std::string("overlap_batch: the cutoff's square is outside the range of normal doubles, "
+                    "cutoff ") + text);
+  }
   if (options.accuracy == Accuracy::high)
     throw std::invalid_argument("overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");
   if (pairs.size == 0) return report;

@@ -1,7 +1,9 @@
 #include "pwcontact/ellipsoid.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 namespace pwcontact {
@@ -37,11 +39,29 @@ QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
 
 QuadraticForm quadratic_form_from_quaternion(const std::array<double, 3>& semi_axes,
                                              const std::array<double, 4>& quaternion) {
-  Eigen::Quaterniond q(quaternion[0], quaternion[1], quaternion[2], quaternion[3]);
-  const double norm = q.norm();
-  if (!(norm > 0) || !std::isfinite(norm))
-    throw std::invalid_argument("quadratic_form_from_quaternion: zero or non-finite quaternion");
-  q.coeffs() /= norm;
+  // Brought to a largest component in [1/2, 1) by a power of two (exact)
+  // first, so that its norm neither underflows nor overflows: any finite,
+  // non-zero quaternion gives its rotation.
+  double largest = 0;
+  bool finite = true;
+  for (double c : quaternion) {
+    largest = std::max(largest, std::abs(c));
+    finite = finite && std::isfinite(c);
+  }
+  if (!(largest > 0) || !finite) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "quadratic_form_from_quaternion: the quaternion (%.17g, %.17g, %.17g, %.17g) "
+                  "is %s",
+                  quaternion[0], quaternion[1], quaternion[2], quaternion[3],
+                  finite ? "zero" : "not finite");
+    throw std::invalid_argument(text);
+  }
+  int exponent = 0;
+  std::frexp(largest, &exponent);
+  Eigen::Quaterniond q(std::ldexp(quaternion[0], -exponent), std::ldexp(quaternion[1], -exponent),
+                       std::ldexp(quaternion[2], -exponent), std::ldexp(quaternion[3], -exponent));
+  q.coeffs() /= q.norm();
   return from_rotation(semi_axes, q.toRotationMatrix());
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include "cli/text_output.hpp"
@@ -65,6 +66,16 @@ double parse_positive_number(std::string_view text) {
   if (error != std::errc() || !(value > 0) || !std::isfinite(value))
     throw std::invalid_argument(quoted(text) + " is not a positive finite number");
   return value;
+}
+
+double parse_cutoff(std::string_view text) {
+  const double cutoff = parse_positive_number(text);
+  const double square = cutoff * cutoff;
+  if (!(square >= std::numeric_limits<double>::min()) || !std::isfinite(square))
+    throw std::invalid_argument(quoted(text) +
+                                " has a square outside the range of normal doubles (mu^2 is "
+                                "compared with cutoff^2): from 1.5e-154 to 1.3e154");
+  return cutoff;
 }
 
 // ---------------------------------------------------------------------------

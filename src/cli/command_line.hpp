@@ -46,6 +46,7 @@ using Arguments = std::vector<std::string_view>;
 std::int64_t parse_integer(std::string_view text, std::int64_t min, std::int64_t max);
 std::uint64_t parse_unsigned(std::string_view text);
 double parse_positive_number(std::string_view text);  // finite and > 0
+double parse_cutoff(std::string_view text);  // positive, its square a normal, finite double
 
 // One subcommand's syntax: its options and its operands (positional
 // arguments). Options may come before or after operands; "--" ends the

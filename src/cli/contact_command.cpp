@@ -101,7 +101,7 @@ OptionParser contact_parser(ContactOptions& options) {
   parser.add_value(
       {"--cutoff"}, "MU", "1",
       "--mode overlap only: a pair overlaps when mu < MU; positive and finite",
-      [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
+      [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
   parser.add_value({"--outputs"}, "LIST", column_list(default_columns),
                    "--mode full only: the columns of each line, comma-separated, each at most "
                    "once, in the order given: " +
@@ -128,19 +128,15 @@ std::string contact_options_help() {
   return contact_parser(options).help();
 }
 
-PairBatch<double> read_pairs(const std::string& path, int threads, std::string& source) {
-  TextInput input(path);
-  source = input.name();
-  NumberColumns table = read_number_columns(input, numbers_per_pair, threads);
-  // The parsed columns become the batch's columns, without a copy.
-  PairBatch<double> pairs;
-  std::vector<std::vector<double>>& columns = table.columns;
+// A block's parsed columns as a batch: swapped in, without a copy (and
+// swapped back by give_back, so that the reader reuses their storage).
+void take_pairs(NumberColumns& block, PairBatch<double>& pairs) {
+  std::vector<std::vector<double>>& columns = block.columns;
   for (int k = 0; k < 3; ++k) pairs.r12(k).swap(columns[std::size_t(k)]);
   for (int k = 0; k < 6; ++k) {
     pairs.q1(k).swap(columns[std::size_t(3 + k)]);
     pairs.q2(k).swap(columns[std::size_t(9 + k)]);
   }
-  return pairs;
 }
 
 template <class T>
@@ -209,21 +205,21 @@ Request request_for(const ContactOptions& options) {
 }
 
 template <class T>
-void write_solution(const Solution<T>& solution, const ContactOptions& options, OutputFile& output,
-                    const std::string& source, double read_seconds) {
+void write_solution(const Solution<T>& solution, const ContactOptions& options,
+                    OutputFile& output) {
   const std::vector<Column>& columns =
       options.mode == Mode::overlap ? overlap_columns : options.columns;
-  const Stopwatch writing;
   write_lines_in_order(
       output, solution.report.pairs, resolve_thread_count(options.solver.threads),
       [&](std::string& text, std::size_t i) { append_result_line(text, columns, solution, i); });
-  output.commit();
+}
 
-  std::fprintf(stderr,
-               "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s",
-               solution.report.pairs, source.c_str(), describe_seconds(read_seconds).c_str(),
-               output.name().c_str(), describe_seconds(writing.seconds()).c_str(),
-               solution.describe().c_str());
+// One block of pairs, solved as asked and written.
+template <class T>
+Solution<T> solve(const PairBatch<T>& pairs, const ContactOptions& options,
+                  const Request& request, int threads) {
+  return options.scalar ? solve_reference(pairs, request, threads)
+                        : solve_batch(pairs, request, options.solver);
 }
 
 // Options that do not apply to the chosen mode or path are refused rather
@@ -266,23 +262,60 @@ ExitStatus run_contact(const Arguments& arguments) {
   const int threads = resolve_thread_count(options.solver.threads);
   const Request request = request_for(options);
   OutputFile output(options.output);
+  TextInput input(options.input);
 
-  const Stopwatch reading;
-  std::string source;
-  PairBatch<double> pairs = read_pairs(options.input, threads, source);
-  const double read_seconds = reading.seconds();
-  if (options.scalar && options.solver.precision == Precision::single_precision) {
-    // The float reference path is contact_function<float>: it takes float
-    // pairs. (The batch path rounds double pairs to float itself.)
-    const PairBatch<float> single = convert_pairs<float>(pairs);
-    pairs = PairBatch<double>();  // release the double copy before solving
-    write_solution(solve_reference(single, request, threads), options, output, source,
-                   read_seconds);
-  } else {
-    write_solution(options.scalar ? solve_reference(pairs, request, threads)
-                                  : solve_batch(pairs, request, options.solver),
-                   options, output, source, read_seconds);
-  }
+  // The input is read, solved and written a block at a time (the pairs of
+  // at most TextInput::block_bytes of text), in order: memory stays that of
+  // a block, whatever the size of the input. A malformed line stops the run
+  // with its number; with -o nothing is written then (the output appears
+  // only on success), on standard output the lines of the blocks before it
+  // have been written.
+  const bool single_scalar =
+      options.scalar && options.solver.precision == Precision::single_precision;
+  // The totals start as the solve of no pairs: the settings as resolved,
+  // for the summary even of an empty input.
+  Solution<double> total;
+  Solution<float> total_float;
+  if (single_scalar)
+    total_float = solve(PairBatch<float>(), options, request, threads);
+  else
+    total = solve(PairBatch<double>(), options, request, threads);
+  double read_seconds = 0, write_seconds = 0;
+  Stopwatch reading;
+  PairBatch<double> pairs;
+  for_each_number_block(input, numbers_per_pair, threads, false, [&](NumberColumns& block) {
+    read_seconds += reading.seconds();
+    take_pairs(block, pairs);
+    if (single_scalar) {
+      // The float reference path is contact_function<float>: it takes float
+      // pairs. (The batch path rounds double pairs to float itself.)
+      const Solution<float> solution =
+          solve(convert_pairs<float>(pairs), options, request, threads);
+      const Stopwatch writing;
+      write_solution(solution, options, output);
+      write_seconds += writing.seconds();
+      add_block(total_float, solution);
+    } else {
+      const Solution<double> solution = solve(pairs, options, request, threads);
+      const Stopwatch writing;
+      write_solution(solution, options, output);
+      write_seconds += writing.seconds();
+      add_block(total, solution);
+    }
+    take_pairs(block, pairs);  // the columns back to the reader, for the next block
+    reading = Stopwatch();
+  });
+  read_seconds += reading.seconds();
+  const Stopwatch committing;
+  output.commit();
+  write_seconds += committing.seconds();
+
+  const std::size_t count = single_scalar ? total_float.report.pairs : total.report.pairs;
+  std::fprintf(stderr,
+               "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s",
+               count, input.name().c_str(), describe_seconds(read_seconds).c_str(),
+               output.name().c_str(), describe_seconds(write_seconds).c_str(),
+               single_scalar ? total_float.describe().c_str() : total.describe().c_str());
   return ExitStatus::success;
 }
 

@@ -64,7 +64,7 @@ OptionParser demo_parser(DemoOptions& options) {
                   "orientations differ; the same centres)",
                   [&options] { options.identical_shapes = true; });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
-                   [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
+                   [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
   add_threads_option(parser, options.threads, "the pairs");
   return parser;
 }
@@ -107,6 +107,7 @@ ExitStatus run_demo(const Arguments& arguments) {
     return ExitStatus::success;
   }
   const int threads = resolve_thread_count(options.threads);
+  resolve_instruction_set(Isa::automatic);  // a bad PWCONTACT_ISA: a usage error, now
   const Stopwatch generating;
   SpheroidScene scene;
   {

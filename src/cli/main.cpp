@@ -95,6 +95,7 @@ std::string full_help(const Subcommand& subcommand) {
 
 int main(int argc, char** argv) {
   using namespace pwcontact::cli;
+  ensure_standard_descriptors();
   const Arguments arguments(argv + 1, argv + argc);
   // Messages name the subcommand they come from, as in "pwcontact contact: ...".
   std::string prefix = "pwcontact";

@@ -1,18 +1,19 @@
 #include "cli/number_table.hpp"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <optional>
 
 #include "cli/command_line.hpp"
+#include "parallel_errors.hpp"
 
 namespace pwcontact::cli {
 namespace {
@@ -22,6 +23,23 @@ namespace {
 }
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+
+// Input text as a message shows it: bytes that are not printable ASCII
+// (a NUL would cut the message short) as \xHH.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u < 0x7f) {
+      out += c;
+    } else {
+      char escaped[5];
+      std::snprintf(escaped, sizeof escaped, "\\x%02X", u);
+      out += escaped;
+    }
+  }
+  return out;
+}
 
 const char* skip_blanks(const char* p, const char* end) {
   while (p != end && is_blank(*p)) ++p;
@@ -82,8 +100,8 @@ std::optional<std::string> parse_record(const char* p, const char* end, double* 
     const char* number_end = parse_number(p, end, row[found]);
     if (!number_end) {
       constexpr std::size_t shown = 40;
-      const std::string token(p, std::min<std::size_t>(token_end(p, end) - p, shown));
-      return "field " + std::to_string(found + 1) + ", '" + token + "', is not a number";
+      const std::string_view token(p, std::min<std::size_t>(token_end(p, end) - p, shown));
+      return "field " + std::to_string(found + 1) + ", '" + printable(token) + "', is not a number";
     }
     ++found;
     p = number_end;
@@ -132,8 +150,15 @@ class ColumnsParser {
     table_.columns.resize(column_count);
   }
 
+  // Appends the records of `lines` (whole lines) to the table.
   void parse(std::string_view lines);
   NumberColumns take() { return std::move(table_); }
+  NumberColumns& table() { return table_; }
+  // Empties the table, keeping the line count (for the next block).
+  void clear() {
+    for (std::vector<double>& column : table_.columns) column.clear();
+    table_.line.clear();
+  }
 
  private:
   const std::string& source_;
@@ -175,8 +200,9 @@ void ColumnsParser::parse(std::string_view lines) {
   if (line_numbers_) table_.line.resize(records);
 
   // Second pass: parse each piece straight into its rows of the columns.
+  detail::ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads_)
-  for (std::ptrdiff_t i = 0; i < count; ++i) {
+  for (std::ptrdiff_t i = 0; i < count; ++i) errors.run([&] {
     Piece& piece = pieces[std::size_t(i)];
     std::vector<double> row(column_count);
     std::size_t line = piece.first_line, record = piece.first_record;
@@ -193,7 +219,8 @@ void ColumnsParser::parse(std::string_view lines) {
       }
       ++line;
     });
-  }
+  });
+  errors.rethrow_if_failed();
 
   // Pieces are in input order: the first one with an error has the first
   // malformed line.
@@ -223,49 +250,50 @@ TextInput::~TextInput() {
 }
 
 void TextInput::read_lines(const std::function<void(std::string_view lines)>& on_lines) {
-  struct stat info {};
-  if (fstat(descriptor_, &info) != 0) fail_to_read(name_, errno);
-  if (S_ISDIR(info.st_mode)) fail_to_read(name_, EISDIR);
+  struct stat before {};
+  if (fstat(descriptor_, &before) != 0) fail_to_read(name_, errno);
+  if (S_ISDIR(before.st_mode)) fail_to_read(name_, EISDIR);
 
-  if (S_ISREG(info.st_mode) && info.st_size > 0) {
-    const std::size_t size = std::size_t(info.st_size);
-    // Unmapped however on_lines leaves (it throws for a malformed line).
-    struct Mapping {
-      void* address;
-      std::size_t size;
-      ~Mapping() {
-        if (address != MAP_FAILED) munmap(address, size);
-      }
-    };
-    const Mapping mapping{mmap(nullptr, size, PROT_READ, MAP_PRIVATE, descriptor_, 0), size};
-    if (mapping.address != MAP_FAILED) {
-      on_lines(std::string_view(static_cast<const char*>(mapping.address), size));
-      return;
-    }
-  }
-
-  // Blocks are handed over full, not per read(), which yields at most 64 KiB
-  // from a pipe: each block is parsed in parallel pieces, and that only pays
-  // for blocks of some MiB.
-  std::vector<char> buffer(std::size_t(16) << 20);
-  std::size_t filled = 0;
+  // Read in blocks through one buffer, never mapped: memory stays that of a
+  // block whatever the size of the input, and a file that shrinks while it
+  // is read is an error below, not a SIGBUS. Blocks are handed over full,
+  // not per read(), which yields at most 64 KiB from a pipe: each block is
+  // parsed in parallel pieces, and that only pays for blocks of some MiB.
+  std::vector<char> buffer(block_bytes);
+  std::size_t filled = 0, total = 0;
+  std::size_t lines_before = 0;  // whole lines handed over, for the message below
   for (;;) {
-    if (filled == buffer.size()) buffer.resize(2 * buffer.size());  // a line longer than that
     const ssize_t got = read(descriptor_, buffer.data() + filled, buffer.size() - filled);
     if (got < 0 && errno == EINTR) continue;
     if (got < 0) fail_to_read(name_, errno);
     if (got == 0) break;
     filled += std::size_t(got);
+    total += std::size_t(got);
     if (filled < buffer.size()) continue;
     const void* last_newline = memrchr(buffer.data(), '\n', filled);
-    if (!last_newline) continue;
+    if (!last_newline)
+      throw CommandError(ExitStatus::usage_error,
+                         name_ + ":" + std::to_string(lines_before + 1) + ": line longer than " +
+                             std::to_string(block_bytes >> 20) + " MiB");
     const std::size_t whole =
         std::size_t(static_cast<const char*>(last_newline) - buffer.data()) + 1;
-    on_lines(std::string_view(buffer.data(), whole));
+    const std::string_view lines(buffer.data(), whole);
+    on_lines(lines);
+    lines_before += std::size_t(std::count(lines.begin(), lines.end(), '\n'));
     std::memmove(buffer.data(), buffer.data() + whole, filled - whole);
     filled -= whole;
   }
   if (filled > 0) on_lines(std::string_view(buffer.data(), filled));
+  // A regular file that changed size while it was read (truncated,
+  // appended to) was not read as one text.
+  struct stat after {};
+  if (S_ISREG(before.st_mode) &&
+      (fstat(descriptor_, &after) != 0 || after.st_size != before.st_size ||
+       total != std::size_t(before.st_size)))
+    throw CommandError(ExitStatus::io_error,
+                       "cannot read " + name_ + ": the file changed while it was read (" +
+                           std::to_string(before.st_size) + " bytes when opened, " +
+                           std::to_string(total) + " read)");
 }
 
 NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads,
@@ -273,6 +301,17 @@ NumberColumns read_number_columns(TextInput& input, std::size_t column_count, in
   ColumnsParser parser(input.name(), column_count, threads, line_numbers);
   input.read_lines([&parser](std::string_view lines) { parser.parse(lines); });
   return parser.take();
+}
+
+void for_each_number_block(TextInput& input, std::size_t column_count, int threads,
+                           bool line_numbers,
+                           const std::function<void(NumberColumns& block)>& on_block) {
+  ColumnsParser parser(input.name(), column_count, threads, line_numbers);
+  input.read_lines([&](std::string_view lines) {
+    parser.clear();
+    parser.parse(lines);
+    if (parser.table().records() > 0) on_block(parser.table());
+  });
 }
 
 }  // namespace pwcontact::cli

@@ -26,12 +26,14 @@ class TextInput {
   const std::string& name() const noexcept { return name_; }  // the path, or "<stdin>"
 
   // Hands the whole text to `on_lines` in consecutive blocks of whole lines
-  // (only the last may lack its '\n'). A regular file is mapped into memory
-  // and handed over at once; anything else (pipes, terminals) is read in
-  // blocks of a few MiB through one reused buffer, so that memory does not
-  // grow with the size of the text. Throws CommandError(io_error) when
-  // reading fails; exceptions from `on_lines` pass through.
+  // of at most block_bytes (only the last may lack its '\n'), read through
+  // one reused buffer, so that memory does not grow with the size of the
+  // text. Throws CommandError(io_error) when reading fails or a regular file
+  // changes size while it is read, CommandError(usage_error) for a line
+  // longer than a block; exceptions from `on_lines` pass through.
   void read_lines(const std::function<void(std::string_view lines)>& on_lines);
+
+  static constexpr std::size_t block_bytes = std::size_t(16) << 20;
 
  private:
   std::string name_;
@@ -60,5 +62,13 @@ struct NumberColumns {
 // messages about a record that is well formed but not acceptable).
 NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads,
                                   bool line_numbers = false);
+
+// The same, a block of records at a time (the records of at most
+// TextInput::block_bytes of text, in input order; line numbers count from
+// the start of the input): memory stays that of one block. `block` is
+// reused for the next one.
+void for_each_number_block(TextInput& input, std::size_t column_count, int threads,
+                           bool line_numbers,
+                           const std::function<void(NumberColumns& block)>& on_block);
 
 }  // namespace pwcontact::cli

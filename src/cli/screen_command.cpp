@@ -79,7 +79,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                    // Only the --box=LX,LY,LZ form reaches here (take_box takes the other).
                    [&options](std::string_view value) { options.box = parse_box(value); });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
-                   [&options](std::string_view value) { options.cutoff = parse_positive_number(value); });
+                   [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
   add_choice(parser, "--format",
              Choices<ParticleFormat>{{ParticleFormat::q, ParticleFormat::axes}, format_name},
              options.format, "how each line gives an ellipsoid (see Input)");
@@ -126,29 +126,46 @@ Arguments take_box(const Arguments& arguments, ScreenCommandOptions& options,
   return rest;
 }
 
+// The particles of the input, a block at a time, each block stored in
+// parallel: the reader's own memory is that of a block. A particle the store
+// refuses stops the run with its index and line (the first one, whatever
+// the thread count).
 ParticleStore read_particles(const std::string& path, ParticleFormat format, int threads,
                              std::string& source) {
   TextInput input(path);
   source = input.name();
-  const NumberColumns table =
-      read_number_columns(input, numbers_per_particle(format), threads, true);
-  const auto& c = table.columns;
   ParticleStore particles;
-  particles.reserve(table.records());
-  for (std::size_t i = 0; i < table.records(); ++i) {
-    try {
-      if (format == ParticleFormat::q)
-        particles.add({c[0][i], c[1][i], c[2][i]},
-                      {c[3][i], c[4][i], c[5][i], c[6][i], c[7][i], c[8][i]});
-      else
-        particles.add_axes({c[0][i], c[1][i], c[2][i]}, {c[3][i], c[4][i], c[5][i]},
-                           {c[6][i], c[7][i], c[8][i], c[9][i]});
-    } catch (const std::invalid_argument& e) {
-      throw CommandError(ExitStatus::usage_error,
-                         source + ": ellipsoid " + std::to_string(i) + " (line " +
-                             std::to_string(table.line[i]) + "): " + e.what());
-    }
-  }
+  for_each_number_block(
+      input, numbers_per_particle(format), threads, true, [&](NumberColumns& block) {
+        const auto& c = block.columns;
+        const std::size_t first = particles.size(), n = block.records();
+        particles.resize(first + n);
+        std::size_t bad = n;  // the first particle refused, n if none
+        std::string message;
+        const std::ptrdiff_t count = std::ptrdiff_t(n);
+#pragma omp parallel for schedule(static) num_threads(threads)
+        for (std::ptrdiff_t signed_i = 0; signed_i < count; ++signed_i) {
+          const std::size_t i = std::size_t(signed_i);
+          try {
+            if (format == ParticleFormat::q)
+              particles.set(first + i, {c[0][i], c[1][i], c[2][i]},
+                            {c[3][i], c[4][i], c[5][i], c[6][i], c[7][i], c[8][i]});
+            else
+              particles.set_axes(first + i, {c[0][i], c[1][i], c[2][i]},
+                                 {c[3][i], c[4][i], c[5][i]}, {c[6][i], c[7][i], c[8][i], c[9][i]});
+          } catch (const std::exception& e) {
+#pragma omp critical(pwcontact_read_particles)
+            if (i < bad) {
+              bad = i;
+              message = e.what();
+            }
+          }
+        }
+        if (bad < n)
+          throw CommandError(ExitStatus::usage_error,
+                             source + ": ellipsoid " + std::to_string(first + bad) + " (line " +
+                                 std::to_string(block.line[bad]) + "): " + message);
+      });
   return particles;
 }
 
@@ -161,6 +178,9 @@ ExitStatus run_screen(const Arguments& arguments) {
     return ExitStatus::success;
   }
   const int threads = resolve_thread_count(options.threads);
+  // PWCONTACT_ISA and the CPU, checked before the input is read: a bad value
+  // is a usage error now rather than after the reading.
+  resolve_instruction_set(Isa::automatic);
   OutputFile output(options.output);
 
   const Stopwatch reading;

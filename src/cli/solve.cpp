@@ -194,6 +194,32 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
   return solution;
 }
 
+template <class T>
+void add_block(Solution<T>& total, const Solution<T>& block) {
+  BatchReport& t = total.report;
+  const BatchReport& b = block.report;
+  const double evaluations =
+      t.mean_evaluations * double(t.pairs) + b.mean_evaluations * double(b.pairs);
+  t.pairs += b.pairs;
+  t.fallbacks += b.fallbacks;
+  t.invalid += b.invalid;
+  for (int s = 0; s < status_count; ++s) t.status_counts[s] += b.status_counts[s];
+  t.decided_by_prefilter += b.decided_by_prefilter;
+  t.decided_by_certificate += b.decided_by_certificate;
+  t.overlapping += b.overlapping;
+  t.mean_evaluations = t.pairs ? evaluations / double(t.pairs) : 0;
+  t.isa = b.isa;
+  t.iterations = b.iterations;
+  t.precision = b.precision;
+  t.formulation = b.formulation;
+  t.accuracy = b.accuracy;
+  t.threads = b.threads;
+  total.request = block.request;
+  total.accuracy = block.accuracy;
+  total.reference_path = block.reference_path;
+  total.seconds += block.seconds;
+}
+
 template <class To, class From>
 PairBatch<To> convert_pairs(const PairBatch<From>& pairs) {
   PairBatch<To> out(pairs.size());
@@ -215,6 +241,8 @@ template Solution<double> solve_batch(const PairBatch<double>&, const Request&,
 template Solution<float> solve_batch(const PairBatch<float>&, const Request&, const BatchOptions&);
 template Solution<double> solve_reference(const PairBatch<double>&, const Request&, int);
 template Solution<float> solve_reference(const PairBatch<float>&, const Request&, int);
+template void add_block(Solution<double>&, const Solution<double>&);
+template void add_block(Solution<float>&, const Solution<float>&);
 template PairBatch<float> convert_pairs(const PairBatch<double>&);
 template PairBatch<double> convert_pairs(const PairBatch<float>&);
 

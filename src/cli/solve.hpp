@@ -65,6 +65,11 @@ Solution<T> solve_batch(const PairBatch<T>& pairs, const Request& request,
 template <class T>
 Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, int threads);
 
+// Adds what `block` counted and timed to `total` (the settings are the
+// block's): the summary of an input solved a block at a time.
+template <class T>
+void add_block(Solution<T>& total, const Solution<T>& block);
+
 // The same pairs in another floating type. From double to float, values
 // beyond float range become +-inf (IEEE 754 rounding), which the solvers
 // answer with status non_finite_input.

@@ -6,6 +6,8 @@
 
 #include <cerrno>
 #include <cstdlib>
+#include <exception>
+#include <csignal>
 #include <cstring>
 #include <filesystem>
 
@@ -24,7 +26,54 @@ std::string formatted(const char* format, double value) {
   return text;
 }
 
+// The temporary file being written, for the handlers below: a signal or
+// std::terminate must not leave it behind either. Plain storage, read by a
+// signal handler (which may only call async-signal-safe functions: unlink,
+// signal, raise).
+char pending_temporary[4096];
+volatile std::sig_atomic_t pending = 0;
+
+extern "C" void remove_pending_and_reraise(int signal_number) {
+  if (pending) unlink(pending_temporary);
+  std::signal(signal_number, SIG_DFL);
+  std::raise(signal_number);
+}
+
+void remove_pending_and_abort() {
+  if (pending) unlink(pending_temporary);
+  std::abort();
+}
+
+// Registers `path` as the pending temporary file (one at a time: the command
+// line writes one output), installing the handlers on first use.
+void set_pending(const std::string& path) {
+  static const bool installed = [] {
+    for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGQUIT})
+      std::signal(signal_number, remove_pending_and_reraise);
+    std::set_terminate(remove_pending_and_abort);
+    return true;
+  }();
+  (void)installed;
+  pending = 0;
+  if (path.size() >= sizeof pending_temporary) return;  // cannot be registered: not removed
+  std::memcpy(pending_temporary, path.c_str(), path.size() + 1);
+  pending = 1;
+}
+
+void clear_pending() { pending = 0; }
+
 }  // namespace
+
+void ensure_standard_descriptors() {
+  // open() returns the lowest free descriptor: a closed 0, 1 or 2 is filled
+  // with /dev/null, so that no file opened later takes its place (an output
+  // file on descriptor 0 would be read back as the input).
+  for (int descriptor = 0; descriptor <= 2; ++descriptor) {
+    if (fcntl(descriptor, F_GETFD) >= 0 || errno != EBADF) continue;
+    const int opened = open("/dev/null", descriptor == 0 ? O_RDONLY : O_WRONLY);
+    if (opened != descriptor) std::_Exit(int(ExitStatus::io_error));
+  }
+}
 
 OutputFile::OutputFile(const std::string& path) {
   if (path == "-") {
@@ -61,12 +110,14 @@ OutputFile::OutputFile(const std::string& path) {
   const int descriptor = mkstemp(pattern.data());
   if (descriptor < 0) fail_to_write(name_, errno);
   temporary_path_ = pattern;
+  set_pending(temporary_path_);
   fchmod(descriptor, mode);
   file_ = fdopen(descriptor, "wb");
   if (!file_) {
     const int fdopen_error = errno;
     close(descriptor);
     unlink(temporary_path_.c_str());
+    clear_pending();
     fail_to_write(name_, fdopen_error);
   }
   owns_file_ = true;
@@ -76,6 +127,7 @@ OutputFile::~OutputFile() {
   if (!owns_file_ || committed_) return;
   std::fclose(file_);
   if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
+  clear_pending();
 }
 
 void OutputFile::write(std::string_view text) noexcept {
@@ -93,6 +145,7 @@ void OutputFile::commit() {
   if (error_ == 0 && !temporary_path_.empty() &&
       std::rename(temporary_path_.c_str(), target_path_.c_str()) != 0)
     error_ = errno;
+  clear_pending();  // renamed into place, or removed below
   if (error_ == 0) return;
   if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
   fail_to_write(name_, error_);

@@ -13,6 +13,7 @@
 #include <string>
 #include <string_view>
 
+#include "parallel_errors.hpp"
 #include "pwcontact/batch.hpp"
 
 namespace pwcontact::cli {
@@ -33,10 +34,16 @@ char* write_number(char* out, T value) {
   return std::to_chars(out, out + max_number_chars, value, std::chars_format::general, 17).ptr;
 }
 
+// Fills a closed standard descriptor (0, 1 or 2) with /dev/null, so that no
+// file opened later takes its number; called first thing in main().
+void ensure_standard_descriptors();
+
 // Where the results go: standard output ("-"), or a file that is written
 // under a temporary name in the same directory and renamed into place by
 // commit(), so that a failed run never leaves a partial file behind (devices
-// and pipes, which cannot be replaced, are written directly).
+// and pipes, which cannot be replaced, are written directly). The temporary
+// file is also removed when SIGINT, SIGTERM, SIGHUP or SIGQUIT ends the
+// program, or std::terminate.
 class OutputFile {
  public:
   // Throws CommandError(io_error) when the file cannot be created.
@@ -73,18 +80,22 @@ void write_lines_in_order(OutputFile& output, std::size_t lines, int threads,
                           const FormatLine& format_line) {
   constexpr std::size_t lines_per_block = 16384;
   const std::size_t blocks = (lines + lines_per_block - 1) / lines_per_block;
+  detail::ParallelErrors errors;  // (formatting allocates)
 #pragma omp parallel num_threads(threads)
   {
     std::string text;
 #pragma omp for ordered schedule(static, 1)
     for (std::size_t block = 0; block < blocks; ++block) {
-      text.clear();
-      const std::size_t end = std::min(lines, (block + 1) * lines_per_block);
-      for (std::size_t i = block * lines_per_block; i < end; ++i) format_line(text, i);
+      errors.run([&] {
+        text.clear();
+        const std::size_t end = std::min(lines, (block + 1) * lines_per_block);
+        for (std::size_t i = block * lines_per_block; i < end; ++i) format_line(text, i);
+      });
 #pragma omp ordered
-      output.write(text);
+      if (!errors.failed()) output.write(text);
     }
   }
+  errors.rethrow_if_failed();
 }
 
 // Wall-clock time since construction.

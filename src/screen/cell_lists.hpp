@@ -24,10 +24,25 @@
 
 #include <omp.h>
 
+#include "parallel_errors.hpp"
 #include "pwcontact/screen.hpp"
 #include "screen/uninitialized.hpp"
 
 namespace pwcontact::screen {
+
+// x wrapped into [0, l]. fmod is exact: the residue of the stored number,
+// whatever its number of box lengths (no image count that could overflow,
+// no rounding of a large x - n l); a negative residue then takes one
+// rounding, to eps l, in adding l.
+inline double wrap_into_box(double x, double l) {
+  // The common cases first, with fmod's results: within one box length of
+  // the box, fmod(x, l) is x or x - l (exact).
+  if (x >= 0 && x < l) return x;
+  if (x < 0 && x >= -l) return x + l;
+  if (x >= l && x < 2 * l) return x - l;
+  const double w = std::fmod(x, l);
+  return w < 0 ? w + l : w;
+}
 
 // What the candidate search reads of every member it compares: the centre
 // wrapped into [0, L] (periodic; as given otherwise) and cutoff * bounding
@@ -77,19 +92,8 @@ struct CellLists {
   bool identical_shapes = false;
 
   // A coordinate wrapped into [0, L] when periodic (as given otherwise).
-  // fmod is exact: the residue of the stored number, whatever its number of
-  // box lengths (no image count that could overflow, no rounding of a large
-  // x - n L); a negative residue then takes one rounding, to eps L, in adding L.
   double wrapped(int k, double x) const {
-    if (!box.periodic) return x;
-    const double l = box.length[k];
-    // The common cases first, with fmod's results: within one box length of
-    // the box, fmod(x, l) is x or x - l (exact).
-    if (x >= 0 && x < l) return x;
-    if (x < 0 && x >= -l) return x + l;
-    if (x >= l && x < 2 * l) return x - l;
-    const double w = std::fmod(x, l);
-    return w < 0 ? w + l : w;
+    return box.periodic ? wrap_into_box(x, box.length[k]) : x;
   }
   // The cell of a (wrapped) coordinate along axis k.
   int cell_of(const ClassGrid& grid, int k, double x) const;
@@ -156,7 +160,8 @@ inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, in
 // those it passed on. Each class's members are taken in cell order (the
 // neighbour cells of consecutive members are the same, and in cache), shared
 // among the threads; progress (may be empty) hears the fraction done now and
-// then.
+// then. An exception from the callbacks (or an allocation) stops the search
+// and is rethrown here, after the threads have joined.
 template <bool coarse_filter, class OnCandidate, class Done>
 void search_candidates(const CellLists& lists, const Box& box, int threads,
                        const std::function<void(double)>& progress, OnCandidate&& on_candidate,
@@ -167,6 +172,7 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
     done_before[g + 1] = done_before[g] + lists.grids[g].size();
     total += lists.grids[g].size();
   }
+  detail::ParallelErrors errors;
 #pragma omp parallel num_threads(threads)
   {
     const int thread = omp_get_thread_num();
@@ -175,7 +181,7 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
     for (std::size_t own = 0; own < lists.grids.size(); ++own) {
       const ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
-      for (std::size_t at = 0; at < home.size(); ++at) {
+      for (std::size_t at = 0; at < home.size(); ++at) errors.run([&] {
         if (progress && thread == 0 && at % 16384 == 0)
           progress((double(done_before[own]) + double(at)) / double(total));
         const Member& i = home.member[at];
@@ -245,10 +251,11 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
                   }
                 }
         }
-      }
+      });
     }
-    done(thread, compared, passed);
+    errors.run([&] { done(thread, compared, passed); });
   }
+  errors.rethrow_if_failed();
 }
 
 }  // namespace pwcontact::screen

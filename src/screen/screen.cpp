@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
+#include "parallel_errors.hpp"
 #include "pwcontact/reference.hpp"
 #include "pwcontact/screen.hpp"
 #include "screen/cell_lists.hpp"
@@ -210,16 +212,29 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
   if (mine.undecided.size() == solve_chunk) solve_waiting(mine, options);
 }
 
-void check(const ParticleStore& particles, const Box& box, const ScreenOptions& options) {
+// The options checked, with what they leave to be resolved settled here,
+// before any thread starts: an error inside the search's threads would
+// otherwise be one per thread.
+ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOptions options) {
   if (!(options.cutoff > 0) || !std::isfinite(options.cutoff))
     throw std::invalid_argument("screen_pairs: the cutoff must be positive and finite, got " +
                                 std::to_string(options.cutoff));
+  // mu^2 is compared with cutoff^2: it must be a normal number.
+  const double cutoff2 = options.cutoff * options.cutoff;
+  if (!(cutoff2 >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff2)) {
+    char text[64];
+    std::snprintf(text, sizeof text, "%.17g", options.cutoff);
+    throw std::invalid_argument(std::string("screen_pairs: the cutoff's square is outside the "
+                                            "range of normal doubles, cutoff ") + text);
+  }
+  // PWCONTACT_ISA and the CPU are read once, here.
+  options.batch.isa = resolve_isa(options.batch.isa);
   if (options.threads < 0)
     throw std::invalid_argument("screen_pairs: threads must be >= 0 (0 = all)");
   // Cell indices are 32-bit and grids have up to two cells per particle.
   if (particles.size() >= (std::size_t(1) << 31))
     throw std::invalid_argument("screen_pairs: at most 2^31 - 1 particles");
-  if (!box.periodic || particles.size() == 0) return;
+  if (!box.periodic || particles.size() == 0) return options;
   const std::vector<double>& bounding = particles.bounding_radius();
   const double largest = *std::max_element(bounding.begin(), bounding.end());
   const double reach = options.cutoff * 2 * largest;
@@ -230,6 +245,7 @@ void check(const ParticleStore& particles, const Box& box, const ScreenOptions& 
           std::to_string(box.length[k]) + " along axis " + std::to_string(k) +
           " is less than twice the largest reach cutoff * 2 R_max = " + std::to_string(reach) +
           " (the minimum image convention would miss pairs)");
+  return options;
 }
 
 }  // namespace
@@ -321,8 +337,8 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
 
 
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
-                          const ScreenOptions& options, ScreenedPairs& out) {
-  check(particles, box, options);
+                          const ScreenOptions& given, ScreenedPairs& out) {
+  const ScreenOptions options = checked(particles, box, given);
   ScreenReport report;
   report.particles = particles.size();
   out = {};
@@ -363,9 +379,9 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 
 ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
                                const std::uint32_t* first, const std::uint32_t* second,
-                               std::size_t count, const ScreenOptions& options,
+                               std::size_t count, const ScreenOptions& given,
                                ScreenedPairs& out) {
-  check(particles, box, options);
+  const ScreenOptions options = checked(particles, box, given);
   if (count > 0 && (!first || !second))
     throw std::invalid_argument("screen_candidates: null candidate arrays");
   const std::size_t n = particles.size();
@@ -385,20 +401,27 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   const std::vector<double>& inscribed = particles.inscribed_radius();
   const std::vector<double>& sphere = particles.sphere_radius();
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+  detail::ParallelErrors errors;
 #pragma omp parallel num_threads(threads)
   {
     ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
 #pragma omp for schedule(static)
-    for (std::size_t k = 0; k < count; ++k) {
+    for (std::size_t k = 0; k < count; ++k) errors.run([&] {
       const std::uint32_t i = first[k], j = second[k];
       double r[3];
       for (int a = 0; a < 3; ++a) {
+        // The residues in the box (exact, as the cell lists'), then the
+        // minimum image.
         r[a] = particles.centre(a)[j] - particles.centre(a)[i];
-        if (box.periodic) r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
+        if (box.periodic) {
+          r[a] = screen::wrap_into_box(particles.centre(a)[j], box.length[a]) -
+                 screen::wrap_into_box(particles.centre(a)[i], box.length[a]);
+          r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
+        }
       }
       const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
       ++mine.candidates;
-      if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) continue;
+      if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) return;
       double qi[6], qj[6];
       for (int a = 0; a < 6; ++a) {
         qi[a] = particles.q(a)[i];
@@ -406,9 +429,10 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
       }
       classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], qi},
                          {j, bounding[j], inscribed[j], sphere[j], qj}, r, rr);
-    }
-    solve_waiting(mine, options);
+    });
+    errors.run([&] { solve_waiting(mine, options); });
   }
+  errors.rethrow_if_failed();
   finish(per_thread, options, threads, t1, report, out);
   return report;
 }
@@ -417,10 +441,10 @@ void for_each_candidate_pair(
     const ParticleStore& particles, const Box& box, double cutoff, int threads,
     const std::function<void(int thread, std::uint32_t i, std::uint32_t j, const double r12[3])>&
         visit) {
-  ScreenOptions options;
-  options.cutoff = cutoff;
-  options.threads = threads;
-  check(particles, box, options);
+  ScreenOptions given;
+  given.cutoff = cutoff;
+  given.threads = threads;
+  const ScreenOptions options = checked(particles, box, given);
   threads = threads > 0 ? threads : omp_get_max_threads();
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
   screen::search_candidates<false>(
