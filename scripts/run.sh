@@ -23,7 +23,7 @@ case "$job" in
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
-packages=(g++ cmake make libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
+packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
           libbenchmark-dev libboost-dev)
 [ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
 missing=()

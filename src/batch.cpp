@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -357,8 +358,8 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
                                 std::to_string(cutoff));
   // mu^2 is compared with cutoff^2: it must be a normal number.
   if (!(cutoff * cutoff >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff * cutoff)) {
-    char text[64];
-    std::snprintf(text, sizeof text, "%.17g", cutoff);
+    char text[32];  // the shortest form that reads back as the value
+    *std::to_chars(text, text + sizeof text - 1, cutoff).ptr = '\0';
     throw std::invalid_argument(
         std::string("overlap_batch: the cutoff's square is outside the range of normal doubles, "
                     "cutoff ") + text);

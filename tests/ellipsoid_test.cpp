@@ -119,6 +119,23 @@ TEST(QuadraticFormFromQuaternion, NonUnitQuaternionIsNormalised) {
   }
 }
 
+TEST(QuadraticFormFromQuaternion, AnyFiniteNonZeroNormGivesTheRotationOfTheUnitQuaternion) {
+  // Was: norms whose squares underflow or overflow (1e-161, 1e154) refused
+  // or wrong. Scaled by a power of two the unit quaternion gives the same
+  // numbers; scaled by a decimal factor, the same to a few eps (the factor's
+  // rounding of the components).
+  const std::array<double, 4> unit = {0.5, -0.5, 0.5, 0.5};
+  const auto expected = pwcontact::quadratic_form_from_quaternion(semi_axes, unit);
+  for (double k : {0x1p-1000, 0x1p1000, 1e-161, 1e154, 5e-324 * 1e10, 1e300}) {
+    const std::array<double, 4> q = {unit[0] * k, unit[1] * k, unit[2] * k, unit[3] * k};
+    const auto got = pwcontact::quadratic_form_from_quaternion(semi_axes, q);
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(got[i], expected[i], 1e-14 * 4) << "scale " << k;
+    if (k == 0x1p-1000 || k == 0x1p1000) {
+      EXPECT_EQ(got, expected) << "scale " << k;
+    }
+  }
+}
+
 TEST(QuadraticFormFromQuaternion, ZeroOrNonFiniteQuaternionThrows) {
   EXPECT_THROW(pwcontact::quadratic_form_from_quaternion(semi_axes, {0, 0, 0, 0}),
                std::invalid_argument);

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "pwcontact/pwcontact.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -381,6 +382,72 @@ TEST(Screen, PeriodicCoordinatesBillionsOfBoxLengthsAwayGiveTheSamePairs) {
     ASSERT_EQ(got.size(), 1u) << lengths << " box lengths";
     EXPECT_EQ(got.mu2[0], 0.25 / 0.36) << lengths << " box lengths";
   }
+}
+
+TEST(Screen, OpenBoxesSpanningBillionsOfCellsMissNoPair) {
+  // Was: a cell coordinate converted to int beyond its range (undefined
+  // behaviour), and pairs missed near cell 2^31. Spheres of radius 0.5
+  // along a line, 2 apart (no pair), then 100 pairs 0.8 apart (each an
+  // overlap) 10 apart from each other, beyond 1e13 and below -1e12 (cells
+  // of side ~1: trillions of cells, clamped to the grid's last).
+  ParticleStore s;
+  for (int k = 0; k < 5000; ++k) s.add_axes({2.0 * k, 0, 0}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+  std::set<std::pair<std::uint32_t, std::uint32_t>> planted;
+  for (double base : {1e13, -1e12}) {
+    for (int k = 0; k < 50; ++k) {
+      const std::uint32_t first = std::uint32_t(s.size());
+      s.add_axes({base + 10.0 * k, 1, 0}, {0.5, 0.4, 0.5}, {1, 0, 0, 0});
+      s.add_axes({base + 10.0 * k + 0.8, 1, 0}, {0.5, 0.4, 0.5}, {1, 0, 0, 0});
+      planted.insert({first, first + 1});
+    }
+  }
+  for (bool with_mu2 : {false, true}) {
+    ScreenedPairs got;
+    screen(s, Box::open(), 1, got, with_mu2);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> found;
+    for (std::size_t k = 0; k < got.size(); ++k) found.insert({got.i[k], got.j[k]});
+    EXPECT_EQ(found, planted) << (with_mu2 ? "with mu2" : "");
+  }
+}
+
+TEST(Screen, ErrorsInsideTheSearchReachTheCallerAsExceptions) {
+  // Was: an exception thrown in the search's threads (a bad PWCONTACT_ISA,
+  // memory exhausted, a visitor's) ended the program in std::terminate.
+  const ParticleStore s = make_scene({500, 0.5, 2, 0.3, 0.5, 8.0, true, 61});
+  const Box box = Box::periodic_box(8, 8, 8);
+  {
+    const pwtest::ScopedEnvironment bad("PWCONTACT_ISA", "avx9");
+    ScreenedPairs got;
+    EXPECT_THROW(screen(s, box, 1, got), std::invalid_argument);
+  }
+  EXPECT_THROW(pwcontact::for_each_candidate_pair(
+                   s, box, 1, 2,
+                   [](int, std::uint32_t i, std::uint32_t, const double*) {
+                     if (i == 100) throw std::runtime_error("visitor");
+                   }),
+               std::runtime_error);
+}
+
+TEST(Screen, ACutoffWhoseSquareIsNotANormalDoubleIsRefusedWithItsValue) {
+  const ParticleStore s = make_scene({10, 0.5, 2, 0.3, 0.5, 8.0, false, 62});
+  for (double cutoff : {1e-200, 1e160}) {
+    ScreenedPairs got;
+    try {
+      screen(s, Box::open(), cutoff, got);
+      ADD_FAILURE() << "cutoff " << cutoff << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(cutoff < 1 ? "1e-200" : "1e+160"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+TEST(Screen, CentresSpanningMoreThanTheDoubleRangeAreRefused) {
+  ParticleStore s;
+  s.add_axes({-1e308, 0, 0}, {1, 1, 1}, {1, 0, 0, 0});
+  s.add_axes({1e308, 0, 0}, {1, 1, 1}, {1, 0, 0, 0});
+  ScreenedPairs got;
+  EXPECT_THROW(screen(s, Box::open(), 1, got), std::invalid_argument);
 }
 
 // Identical, aligned ellipsoids (one Q for all) of the given semi-axes,

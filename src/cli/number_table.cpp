@@ -285,9 +285,10 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
   }
   if (filled > 0) on_lines(std::string_view(buffer.data(), filled));
   // A regular file that changed size while it was read (truncated,
-  // appended to) was not read as one text.
+  // appended to) was not read as one text. (Files that report no size, as
+  // those of /proc, are read as they come.)
   struct stat after {};
-  if (S_ISREG(before.st_mode) &&
+  if (S_ISREG(before.st_mode) && before.st_size > 0 &&
       (fstat(descriptor_, &after) != 0 || after.st_size != before.st_size ||
        total != std::size_t(before.st_size)))
     throw CommandError(ExitStatus::io_error,

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <stdexcept>
 
 namespace pwcontact::screen {
 namespace {
@@ -72,14 +74,25 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
     low[k] = lo;
     high[k] = hi;
+    // Open boundaries: differences of centres must be finite.
+    if (!box.periodic && !std::isfinite(hi - lo)) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "screen_pairs: the centres span more than the largest double along axis %d "
+                    "(from %.17g to %.17g): their differences overflow",
+                    k, lo, hi);
+      throw std::invalid_argument(text);
+    }
   }
   lists.origin = low;
   // The coarse test's slack: the wrapped positions are within a few eps of
   // the largest coordinate (or box length) of their exact values, and the
   // reach within a few eps of the largest reach; a thousand times both.
+  // (Periodic: the wrapped positions, within [0, L] whatever the centres.)
   double scale = 2 * cutoff * largest;
   for (int k = 0; k < 3; ++k)
-    scale = std::max({scale, std::abs(low[k]), std::abs(high[k]), box.length[k]});
+    scale = box.periodic ? std::max(scale, box.length[k])
+                         : std::max({scale, std::abs(low[k]), std::abs(high[k])});
   lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
   lists.largest_reach = cutoff * largest;
 
@@ -111,9 +124,10 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
       double total = 1;
       for (int k = 0; k < 3; ++k) {
         const double extent = box.periodic ? box.length[k] : high[k] - low[k];
-        const double cells = box.periodic ? std::max(1.0, std::floor(extent / side))
-                                          : std::floor(extent / side) + 1;
-        grid.cells[k] = int(std::min(cells, 1e6));
+        double cells = box.periodic ? std::max(1.0, std::floor(extent / side))
+                                    : std::floor(extent / side) + 1;
+        if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
+        grid.cells[k] = int(cells);
         grid.inverse_side[k] = box.periodic ? grid.cells[k] / extent : 1 / side;
         total *= grid.cells[k];
       }

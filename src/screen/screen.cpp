@@ -4,6 +4,7 @@
 #include <parallel/algorithm>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -222,8 +223,8 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
   // mu^2 is compared with cutoff^2: it must be a normal number.
   const double cutoff2 = options.cutoff * options.cutoff;
   if (!(cutoff2 >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff2)) {
-    char text[64];
-    std::snprintf(text, sizeof text, "%.17g", options.cutoff);
+    char text[32];  // the shortest form that reads back as the value
+    *std::to_chars(text, text + sizeof text - 1, options.cutoff).ptr = '\0';
     throw std::invalid_argument(std::string("screen_pairs: the cutoff's square is outside the "
                                             "range of normal doubles, cutoff ") + text);
   }
