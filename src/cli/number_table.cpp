@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <optional>
 
 #include "cli/command_line.hpp"
@@ -259,7 +260,14 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
   // is read is an error below, not a SIGBUS. Blocks are handed over full,
   // not per read(), which yields at most 64 KiB from a pipe: each block is
   // parsed in parallel pieces, and that only pays for blocks of some MiB.
-  std::vector<char> buffer(block_bytes);
+  // (Uninitialised: zeroing 16 MiB would cost more than a small input's reading.)
+  const std::unique_ptr<char[]> storage(new char[block_bytes]);
+  struct Buffer {
+    char* data_;
+    std::size_t size_;
+    char* data() const { return data_; }
+    std::size_t size() const { return size_; }
+  } buffer{storage.get(), block_bytes};
   std::size_t filled = 0, total = 0;
   std::size_t lines_before = 0;  // whole lines handed over, for the message below
   for (;;) {
