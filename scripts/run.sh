@@ -5,6 +5,9 @@
 #   bash scripts/run.sh demo [args]   the main job on its embedded default
 #   bash scripts/run.sh test          the whole test suite (Release build)
 #   bash scripts/run.sh sanitize      the whole test suite under ASan + UBSan
+#   bash scripts/run.sh fuzz [SECONDS] each libFuzzer target (fuzz/) for SECONDS (60) on a
+#                                     copy of its seed corpus, two at a time (clang)
+#   bash scripts/run.sh tsan          the thread-safety tests under ThreadSanitizer (clang)
 #   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
 #   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
 #   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
@@ -18,14 +21,17 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 job="${1:-}"
 [ $# -gt 0 ] && shift
 case "$job" in
-  demo|test|sanitize|bench|screen-bench|trade) ;;
-  *) echo "usage: bash scripts/run.sh demo|test|sanitize|bench|screen-bench|trade [args...]" >&2; exit 2 ;;
+  demo|test|sanitize|fuzz|tsan|bench|screen-bench|trade) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|fuzz|tsan|bench|screen-bench|trade [args...]" >&2; exit 2 ;;
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
 packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
           libbenchmark-dev libboost-dev)
 [ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
+# libFuzzer and ThreadSanitizer come with clang; LLVM's OpenMP runtime is
+# the one ThreadSanitizer understands.
+case "$job" in fuzz|tsan) packages+=(clang-14 libclang-rt-14-dev libomp-14-dev) ;; esac
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -52,6 +58,43 @@ case "$job" in
     cmake --preset sanitize >/dev/null
     cmake --build --preset sanitize -j "$jobs"
     exec ctest --preset sanitize ;;
+  fuzz)
+    cmake --preset fuzz >/dev/null
+    cmake --build --preset fuzz -j "$jobs"
+    seconds="${1:-60}"
+    work=build/fuzz/corpora
+    targets=(number_table_fuzz contact_input_fuzz screen_input_fuzz options_fuzz kernels_fuzz)
+    run_target() {  # a target on its own copy of the seed corpus, its log kept
+      local target="$1"
+      mkdir -p "$work/$target"
+      cp -n fuzz/corpus/"$target"/* "$work/$target"/
+      build/fuzz/fuzz/"$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+        -print_final_stats=1 -artifact_prefix="build/fuzz/$target-" "$work/$target" \
+        > "build/fuzz/$target.log" 2>&1
+    }
+    failed=()
+    for ((k = 0; k < ${#targets[@]}; k += 2)); do
+      pids=()
+      for target in "${targets[@]:k:2}"; do
+        echo "fuzzing $target for $seconds s" >&2
+        run_target "$target" & pids+=($!)
+      done
+      for ((p = 0; p < ${#pids[@]}; ++p)); do
+        target="${targets[k + p]}"
+        if wait "${pids[p]}"; then
+          grep -E "^Done|stat::number_of_executed_units|cov:" "build/fuzz/$target.log" | tail -n 2 >&2
+        else
+          cat "build/fuzz/$target.log" >&2
+          failed+=("$target")
+        fi
+      done
+    done
+    if [ ${#failed[@]} -gt 0 ]; then echo "fuzz targets failed: ${failed[*]}" >&2; exit 1; fi
+    exit 0 ;;
+  tsan)
+    cmake --preset tsan >/dev/null
+    cmake --build --preset tsan -j "$jobs" --target thread_safety_test
+    exec ctest --preset tsan ;;
   bench)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_bench

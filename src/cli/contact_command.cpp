@@ -249,14 +249,25 @@ void check_contact_options(const OptionParser& parser, const ContactOptions& opt
   }
 }
 
+// The arguments into `options`, checked; false when help was asked for.
+bool parse_contact(const Arguments& arguments, ContactOptions& options) {
+  OptionParser parser = contact_parser(options);
+  if (!parser.parse(arguments)) return false;
+  check_contact_options(parser, options);
+  return true;
+}
+
+bool parse_contact_only(const Arguments& arguments) {
+  ContactOptions options;
+  return parse_contact(arguments, options);
+}
+
 ExitStatus run_contact(const Arguments& arguments) {
   ContactOptions options;
-  OptionParser parser = contact_parser(options);
-  if (!parser.parse(arguments)) {
+  if (!parse_contact(arguments, options)) {
     std::fputs(full_help(contact_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
-  check_contact_options(parser, options);
   // Settle everything that can fail before reading a possibly large input.
   if (!options.scalar) options.solver.isa = resolve_instruction_set(options.solver.isa);
   const int threads = resolve_thread_count(options.solver.threads);
@@ -323,6 +334,6 @@ ExitStatus run_contact(const Arguments& arguments) {
 
 const Subcommand contact_subcommand = {
     "contact", "mu^2 and more, or overlap only, of every pair in a file or stdin",
-    contact_options_help, run_contact};
+    contact_options_help, run_contact, parse_contact_only};
 
 }  // namespace pwcontact::cli

@@ -99,10 +99,14 @@ class ProgressBar {
   Stopwatch clock_;
 };
 
+bool parse_demo_only(const Arguments& arguments) {
+  DemoOptions options;
+  return demo_parser(options).parse(arguments);
+}
+
 ExitStatus run_demo(const Arguments& arguments) {
   DemoOptions options;
-  OptionParser parser = demo_parser(options);
-  if (!parser.parse(arguments)) {
+  if (!demo_parser(options).parse(arguments)) {
     std::fputs(full_help(demo_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
@@ -153,6 +157,6 @@ ExitStatus run_demo(const Arguments& arguments) {
 
 const Subcommand demo_subcommand = {
     "demo", "the main job on an embedded default: a scene of 1M spheroids screened for overlaps",
-    demo_options_help, run_demo};
+    demo_options_help, run_demo, parse_demo_only};
 
 }  // namespace pwcontact::cli

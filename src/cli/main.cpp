@@ -87,10 +87,6 @@ ExitStatus run(const Arguments& arguments) {
 
 }  // namespace
 
-std::string full_help(const Subcommand& subcommand) {
-  return subcommand.options_help() + "\n" + status_code_table() + "\n" + exit_status_text();
-}
-
 }  // namespace pwcontact::cli
 
 int main(int argc, char** argv) {

@@ -312,6 +312,13 @@ NumberColumns read_number_columns(TextInput& input, std::size_t column_count, in
   return parser.take();
 }
 
+NumberColumns parse_number_columns(std::string_view text, std::size_t column_count, int threads,
+                                   bool line_numbers, const std::string& source) {
+  ColumnsParser parser(source, column_count, threads, line_numbers);
+  parser.parse(text);
+  return parser.take();
+}
+
 void for_each_number_block(TextInput& input, std::size_t column_count, int threads,
                            bool line_numbers,
                            const std::function<void(NumberColumns& block)>& on_block) {

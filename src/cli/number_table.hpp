@@ -63,6 +63,10 @@ struct NumberColumns {
 NumberColumns read_number_columns(TextInput& input, std::size_t column_count, int threads,
                                   bool line_numbers = false);
 
+// The same from text in memory (`source` names it in messages).
+NumberColumns parse_number_columns(std::string_view text, std::size_t column_count, int threads,
+                                   bool line_numbers, const std::string& source);
+
 // The same, a block of records at a time (the records of at most
 // TextInput::block_bytes of text, in input order; line numbers count from
 // the start of the input): memory stays that of one block. `block` is

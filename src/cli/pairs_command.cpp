@@ -111,14 +111,25 @@ void print_report(const PairsOptions& options, const PairBatch<T>& batch_pairs,
                 accuracy.validity_differs);
 }
 
+// The arguments into `options`, checked; false when help was asked for.
+bool parse_pairs(const Arguments& arguments, PairsOptions& options) {
+  OptionParser parser = pairs_parser(options);
+  if (!parser.parse(arguments)) return false;
+  check_solver_options(parser, options.solver);
+  return true;
+}
+
+bool parse_pairs_only(const Arguments& arguments) {
+  PairsOptions options;
+  return parse_pairs(arguments, options);
+}
+
 ExitStatus run_pairs(const Arguments& arguments) {
   PairsOptions options;
-  OptionParser parser = pairs_parser(options);
-  if (!parser.parse(arguments)) {
+  if (!parse_pairs(arguments, options)) {
     std::fputs(full_help(pairs_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
-  check_solver_options(parser, options.solver);
   options.solver.isa = resolve_instruction_set(options.solver.isa);
 
   const Stopwatch generating;
@@ -140,6 +151,6 @@ ExitStatus run_pairs(const Arguments& arguments) {
 
 const Subcommand pairs_subcommand = {"pairs",
                                     "random pairs through the batch path: throughput and accuracy",
-                                    pairs_options_help, run_pairs};
+                                    pairs_options_help, run_pairs, parse_pairs_only};
 
 }  // namespace pwcontact::cli

@@ -169,11 +169,21 @@ ParticleStore read_particles(const std::string& path, ParticleFormat format, int
   return particles;
 }
 
-ExitStatus run_screen(const Arguments& arguments) {
-  ScreenCommandOptions options;
+// The arguments into `options`; false when help was asked for.
+bool parse_screen(const Arguments& arguments, ScreenCommandOptions& options) {
   OptionParser parser = screen_parser(options);
   const Arguments rest = take_box(arguments, options, parser);
-  if (!parser.parse(rest)) {
+  return parser.parse(rest);
+}
+
+bool parse_screen_only(const Arguments& arguments) {
+  ScreenCommandOptions options;
+  return parse_screen(arguments, options);
+}
+
+ExitStatus run_screen(const Arguments& arguments) {
+  ScreenCommandOptions options;
+  if (!parse_screen(arguments, options)) {
     std::fputs(full_help(screen_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
@@ -226,6 +236,6 @@ ExitStatus run_screen(const Arguments& arguments) {
 
 const Subcommand screen_subcommand = {
     "screen", "every pair of a scene of ellipsoids with mu < cutoff (overlaps, neighbour lists)",
-    screen_options_help, run_screen};
+    screen_options_help, run_screen, parse_screen_only};
 
 }  // namespace pwcontact::cli

@@ -18,6 +18,10 @@ struct Subcommand {
   // Runs with the arguments after the subcommand name, handling --help
   // itself. Throws CommandError for what the user must fix.
   ExitStatus (*run)(const Arguments& arguments);
+  // Only parses and checks the arguments, as run() does before any work
+  // (false: help was asked for); throws as run() does. For the tests and
+  // the option parser's fuzz target.
+  bool (*parse_only)(const Arguments& arguments);
 };
 
 extern const Subcommand contact_subcommand;

@@ -12,6 +12,7 @@
 #include <filesystem>
 
 #include "cli/command_line.hpp"
+#include "cli/subcommands.hpp"
 
 namespace pwcontact::cli {
 namespace {
@@ -226,6 +227,10 @@ std::string exit_status_text() {
          "  1  an input cannot be read or the output cannot be written\n"
          "  2  bad command line, malformed input line, or an instruction set\n"
          "     this CPU lacks\n";
+}
+
+std::string full_help(const Subcommand& subcommand) {
+  return subcommand.options_help() + "\n" + status_code_table() + "\n" + exit_status_text();
 }
 
 }  // namespace pwcontact::cli

@@ -1,7 +1,6 @@
 // screen_pairs: cell lists, prefilters, compaction, the batch path, and the
 // pairs found in a deterministic order (see screen.hpp).
 #include <omp.h>
-#include <parallel/algorithm>
 
 #include <algorithm>
 #include <charconv>
@@ -253,6 +252,32 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
 
 namespace {
 
+// The elements of the lists (one per thread of the search), sorted by
+// `less`, each once (elements equal under `less` are the same pair): each
+// list sorted in a thread of its own, then merged two by two. (Not
+// libstdc++'s parallel mode, whose sort lets exceptions out of its OpenMP
+// region and races on its thread count.)
+template <class T, class Less>
+std::vector<T> sorted_union(std::vector<std::vector<T>>& lists, int threads, Less less) {
+  detail::ParallelErrors errors;
+  const std::ptrdiff_t count = std::ptrdiff_t(lists.size());
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (std::ptrdiff_t t = 0; t < count; ++t)
+    errors.run([&] { std::sort(lists[std::size_t(t)].begin(), lists[std::size_t(t)].end(), less); });
+  errors.rethrow_if_failed();
+  std::vector<T> merged, next;
+  for (std::vector<T>& list : lists) {
+    next.resize(merged.size() + list.size());
+    std::merge(merged.begin(), merged.end(), list.begin(), list.end(), next.begin(), less);
+    merged.swap(next);
+    std::vector<T>().swap(list);
+  }
+  merged.erase(std::unique(merged.begin(), merged.end(),
+                           [&less](const T& x, const T& y) { return !less(x, y) && !less(y, x); }),
+               merged.end());
+  return merged;
+}
+
 // Sums what the threads counted into the report, and the pairs found,
 // sorted by (i, j) and each once, into out. t1: when the search began.
 void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, int threads,
@@ -292,17 +317,20 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
       std::max(0.0, (t2 - t1) - report.seconds_compaction - report.seconds_solve);
   const double t4 = t2;
 
-  // The pairs found, sorted by (i, j).
+  // The pairs found, sorted by (i, j), each once (a pair listed twice by
+  // the candidate lists is kept once).
   if (options.with_mu2) {
-    std::vector<std::pair<std::uint64_t, double>> found;
-    for (const ThreadPairs& t : per_thread)
-      for (std::size_t k = 0; k < t.found.size(); ++k) found.push_back({t.found[k], t.found_mu2[k]});
-    __gnu_parallel::sort(found.begin(), found.end(), std::less<>(),
-                         __gnu_parallel::multiway_mergesort_tag(threads));
-    // A pair listed twice (candidate lists) is kept once.
-    found.erase(std::unique(found.begin(), found.end(),
-                            [](const auto& x, const auto& y) { return x.first == y.first; }),
-                found.end());
+    std::vector<std::vector<std::pair<std::uint64_t, double>>> lists(per_thread.size());
+    for (std::size_t t = 0; t < per_thread.size(); ++t) {
+      ThreadPairs& mine = per_thread[t];
+      lists[t].reserve(mine.found.size());
+      for (std::size_t k = 0; k < mine.found.size(); ++k)
+        lists[t].push_back({mine.found[k], mine.found_mu2[k]});
+      std::vector<std::uint64_t>().swap(mine.found);
+      std::vector<double>().swap(mine.found_mu2);
+    }
+    const std::vector<std::pair<std::uint64_t, double>> found = sorted_union(
+        lists, threads, [](const auto& x, const auto& y) { return x.first < y.first; });
     out.i.resize(found.size());
     out.j.resize(found.size());
     out.mu2.resize(found.size());
@@ -312,17 +340,9 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
       out.mu2[k] = found[k].second;
     }
   } else {
-    std::size_t total = 0;
-    for (const ThreadPairs& t : per_thread) total += t.found.size();
-    std::vector<std::uint64_t> found;
-    found.reserve(total);
-    for (ThreadPairs& t : per_thread) {
-      found.insert(found.end(), t.found.begin(), t.found.end());
-      std::vector<std::uint64_t>().swap(t.found);
-    }
-    __gnu_parallel::sort(found.begin(), found.end(), std::less<>(),
-                         __gnu_parallel::multiway_mergesort_tag(threads));
-    found.erase(std::unique(found.begin(), found.end()), found.end());
+    std::vector<std::vector<std::uint64_t>> lists(per_thread.size());
+    for (std::size_t t = 0; t < per_thread.size(); ++t) lists[t].swap(per_thread[t].found);
+    const std::vector<std::uint64_t> found = sorted_union(lists, threads, std::less<>());
     out.i.resize(found.size());
     out.j.resize(found.size());
     for (std::size_t k = 0; k < found.size(); ++k) {

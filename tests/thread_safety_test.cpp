@@ -1,0 +1,80 @@
+// The library called from several threads of the caller's at once (each
+// call with its own OpenMP team): every call gets the answers it gets alone.
+// Run under ThreadSanitizer by `bash scripts/run.sh tsan`, where it also
+// shows that no state is shared without synchronisation.
+#include <gtest/gtest.h>
+
+#include <thread>
+#include <vector>
+
+#include "test_support.hpp"
+
+namespace pwtest {
+namespace {
+
+// What one caller does: full answers in double and float, overlap answers,
+// the reference path, a screen; returned for comparison.
+struct Answers {
+  std::vector<double> mu2, lambda;
+  std::vector<float> mu2_float;
+  std::vector<std::uint8_t> overlap;
+  std::vector<double> reference;
+  std::vector<std::uint32_t> pairs_i, pairs_j;
+};
+
+Answers work(const PairBatch<double>& pairs, const PairBatch<float>& floats,
+             const pwcontact::ParticleStore& scene, int threads) {
+  Answers a;
+  const std::size_t n = pairs.size();
+  BatchOptions options;
+  options.threads = threads;
+  a.mu2.resize(n);
+  a.lambda.resize(n);
+  std::vector<Status> status(n);
+  pwcontact::contact_function_batch(pairs.view(), {a.mu2.data(), a.lambda.data(), status.data()},
+                                    options);
+  a.mu2_float.resize(n);
+  std::vector<Status> status_float(n);
+  pwcontact::contact_function_batch(floats.view(), {a.mu2_float.data(), nullptr, status_float.data()},
+                                    options);
+  a.overlap.resize(n);
+  pwcontact::overlap_batch(pairs.view(), {a.overlap.data(), status.data()}, options, 1.0);
+  for (std::size_t i = 0; i < n; i += 97) a.reference.push_back(reference(pair_at(pairs, i)).mu2);
+  pwcontact::ScreenOptions screen;
+  screen.threads = threads;
+  pwcontact::ScreenedPairs found;
+  pwcontact::screen_pairs(scene, pwcontact::Box::periodic_box(12, 12, 12), screen, found);
+  a.pairs_i = found.i;
+  a.pairs_j = found.j;
+  return a;
+}
+
+TEST(ThreadSafety, CallsFromSeveralThreadsGetTheAnswersTheyGetAlone) {
+  const PairBatch<double> pairs = pwcontact::random_pairs(20000, 17);
+  const PairBatch<float> floats = make_batch(convert_all<float>(pairs_of(pairs)));
+  pwcontact::ParticleStore scene;
+  Engine engine(18);
+  for (int k = 0; k < 1500; ++k)
+    scene.add_axes({12 * uniform01(engine), 12 * uniform01(engine), 12 * uniform01(engine)},
+                   {0.3 + 0.3 * uniform01(engine), 0.4, 0.5},
+                   {uniform01(engine) - 0.5, uniform01(engine) - 0.5, uniform01(engine), 1});
+  const Answers alone = work(pairs, floats, scene, 1);
+  constexpr int callers = 4;
+  std::vector<Answers> answers(callers);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < callers; ++t)
+    threads.emplace_back([&, t] { answers[t] = work(pairs, floats, scene, 1 + t % 2); });
+  for (std::thread& thread : threads) thread.join();
+  for (int t = 0; t < callers; ++t) {
+    EXPECT_EQ(answers[t].mu2, alone.mu2) << "caller " << t;
+    EXPECT_EQ(answers[t].lambda, alone.lambda) << "caller " << t;
+    EXPECT_EQ(answers[t].mu2_float, alone.mu2_float) << "caller " << t;
+    EXPECT_EQ(answers[t].overlap, alone.overlap) << "caller " << t;
+    EXPECT_EQ(answers[t].reference, alone.reference) << "caller " << t;
+    EXPECT_EQ(answers[t].pairs_i, alone.pairs_i) << "caller " << t;
+    EXPECT_EQ(answers[t].pairs_j, alone.pairs_j) << "caller " << t;
+  }
+}
+
+}  // namespace
+}  // namespace pwtest
