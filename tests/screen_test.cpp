@@ -450,6 +450,144 @@ TEST(Screen, CentresSpanningMoreThanTheDoubleRangeAreRefused) {
   EXPECT_THROW(screen(s, Box::open(), 1, got), std::invalid_argument);
 }
 
+// ---------------------------------------------------------------------------
+// Triclinic boxes
+
+// The pairs (i < j) with mu^2 < cutoff^2 at some periodic image: every image
+// n1 a1 + n2 a2 + n3 a3 with |n_k| <= 2 whose bounding spheres meet,
+// solved by the reference path. Independent of the screen's minimum image
+// and cell lists.
+std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force_images(const ParticleStore& s,
+                                                                     const Box& box,
+                                                                     double cutoff) {
+  const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
+  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const int nz = box.two_dimensional ? 0 : 2;
+  const std::size_t n = s.size();
+  // Every centre moved into the box first, by whole lattice vectors: the
+  // fractional coordinates by Eigen's LU, rounded down.
+  Eigen::Matrix3d h;
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) h(r, c) = a[c][r];
+  if (box.two_dimensional) h(2, 2) = 1;
+  const Eigen::Matrix3d inverse = h.inverse();
+  std::vector<Eigen::Vector3d> centres(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d x(s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]);
+    Eigen::Vector3d f = inverse * x;
+    for (int k = 0; k < (box.two_dimensional ? 2 : 3); ++k) f[k] = std::floor(f[k]);
+    if (box.two_dimensional) f[2] = 0;
+    centres[i] = x - h * f;
+  }
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> rows(n);
+#pragma omp parallel for schedule(dynamic, 8)
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j) {
+      const double reach = cutoff * (s.bounding_radius()[i] + s.bounding_radius()[j]);
+      const auto qi = form(s, i), qj = form(s, j);
+      bool found = false;
+      for (int n1 = -2; n1 <= 2 && !found; ++n1)
+        for (int n2 = -2; n2 <= 2 && !found; ++n2)
+          for (int n3 = -nz; n3 <= nz && !found; ++n3) {
+            double r[3];
+            for (int k = 0; k < 3; ++k)
+              r[k] = centres[j][k] - centres[i][k] + n1 * a[0][k] + n2 * a[1][k] + n3 * a[2][k];
+            if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach) continue;
+            const auto result = pwcontact::contact_function<double>(r, qi.data(), qj.data());
+            found = result.status == pwcontact::Status::ok && result.mu2 < cutoff * cutoff;
+          }
+      if (found) rows[i].push_back({std::uint32_t(i), std::uint32_t(j)});
+    }
+  std::set<std::pair<std::uint32_t, std::uint32_t>> all;
+  for (const auto& row : rows) all.insert(row.begin(), row.end());
+  return all;
+}
+
+// Random spheroids with centres anywhere in [-3 L, 3 L) (so that many are
+// given outside the box) in a box of the given tilts.
+ParticleStore triclinic_scene(std::size_t count, const Box& box, std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  ParticleStore s;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double size = 0.2 + 0.2 * unit(engine), aspect = 0.4 + 1.6 * unit(engine);
+    s.add_axes({box.length[0] * (6 * unit(engine) - 3), box.length[1] * (6 * unit(engine) - 3),
+                box.length[2] * (6 * unit(engine) - 3)},
+               {size, size, size * aspect}, {normal(engine), normal(engine), normal(engine), normal(engine)});
+  }
+  return s;
+}
+
+void expect_same_pairs_as_every_image(const ParticleStore& s, const Box& box, double cutoff,
+                                      const std::string& what) {
+  const auto expected = brute_force_images(s, box, cutoff);
+  for (bool with_mu2 : {false, true}) {
+    ScreenedPairs got;
+    screen(s, box, cutoff, got, with_mu2);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> found;
+    for (std::size_t k = 0; k < got.size(); ++k) found.insert({got.i[k], got.j[k]});
+    std::size_t differing = 0;
+    for (const auto& p : expected) differing += !found.count(p);
+    for (const auto& p : found) differing += !expected.count(p);
+    EXPECT_EQ(differing, 0u) << what << (with_mu2 ? ", with mu2" : "") << ": " << found.size()
+                             << " found, " << expected.size() << " expected";
+    std::printf("[ measured ] %s%s: %zu pairs found, %zu by every image\n", what.c_str(),
+                with_mu2 ? " (with mu2)" : "", found.size(), expected.size());
+  }
+}
+
+TEST(Screen, TriclinicBoxesMatchABruteForceOverEveryImage) {
+  // Tilts from none to beyond 0.5 (skewed cells), centres given up to three
+  // box lengths outside the box: pairs across every face and edge.
+  const double tilts[][3] = {{0, 0, 0}, {0.3, 0.2, 0.1}, {0.5, -0.5, 0.5}, {-0.9, 0.7, -0.8}};
+  std::uint64_t seed = 71;
+  for (const auto& t : tilts) {
+    const Box box = Box::triclinic(7, 6.5, 6, t[0], t[1], t[2]);
+    const ParticleStore s = triclinic_scene(900, box, seed++);
+    expect_same_pairs_as_every_image(s, box, 1, "tilts " + std::to_string(t[0]) + " " +
+                                                    std::to_string(t[1]) + " " + std::to_string(t[2]));
+  }
+  // A neighbour list (cutoff 1.4) in the most skewed box.
+  const Box skewed = Box::triclinic(8, 7.5, 7, -0.9, 0.7, -0.8);
+  expect_same_pairs_as_every_image(triclinic_scene(700, skewed, 79), skewed, 1.4, "skewed, cutoff 1.4");
+}
+
+TEST(Screen, ATiltedBoxThinnerThanTwiceTheReachAcrossAFaceIsAnError) {
+  // Lengths 6 but tilted by 2: the width across x is 6 / sqrt(1 + 4) = 2.7.
+  const Box box = Box::triclinic(6, 6, 6, 2, 0, 0);
+  ParticleStore s;
+  s.add_axes({0, 0, 0}, {0.8, 0.8, 0.8}, {1, 0, 0, 0});
+  ScreenedPairs got;
+  try {
+    screen(s, box, 1, got);
+    ADD_FAILURE() << "a box 2.7 wide accepted for a reach of 3.2";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("tilted"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Screen, LammpsBoxesConvertToTheHoomdConventionAndBack) {
+  // LAMMPS tilts are lengths: xy = 1.5 with Ly = 6 is HOOMD's 0.25.
+  const Box box = Box::from_lammps(8, 6, 5, 1.5, -1, 0.5);
+  EXPECT_EQ(box.tilt[0], 0.25);
+  EXPECT_EQ(box.tilt[1], -0.2);
+  EXPECT_EQ(box.tilt[2], 0.1);
+  const auto lammps = box.lammps_tilts();
+  EXPECT_DOUBLE_EQ(lammps[0], 1.5);
+  EXPECT_DOUBLE_EQ(lammps[1], -1);
+  EXPECT_DOUBLE_EQ(lammps[2], 0.5);
+  std::mt19937_64 engine(81);
+  std::uniform_real_distribution<double> unit(-1, 1);
+  for (int k = 0; k < 100; ++k) {
+    const Box b = Box::triclinic(1 + unit(engine) + 2, 3 + unit(engine), 2 + unit(engine),
+                                 unit(engine), unit(engine), unit(engine));
+    const auto t = b.lammps_tilts();
+    const Box back = Box::from_lammps(b.length[0], b.length[1], b.length[2], t[0], t[1], t[2]);
+    for (int a = 0; a < 3; ++a) EXPECT_NEAR(back.tilt[a], b.tilt[a], 4e-16) << k;
+  }
+}
+
 // Identical, aligned ellipsoids (one Q for all) of the given semi-axes,
 // random centres in a periodic box.
 ParticleStore aligned_scene(const std::array<double, 3>& semi_axes, std::size_t n, double box,

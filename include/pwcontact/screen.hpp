@@ -27,15 +27,36 @@
 
 namespace pwcontact {
 
-// Open boundaries, or a periodic orthorhombic box [0, L) (any origin: the
-// minimum image convention only uses differences).
+// Open boundaries, or a periodic box in the convention of HOOMD-blue, GSD
+// and freud: edge lengths Lx, Ly, Lz and unitless tilt factors xy, xz, yz,
+// whose lattice vectors are the columns of the box matrix
+//   h = [[Lx, xy Ly, xz Lz], [0, Ly, yz Lz], [0, 0, Lz]]
+// (orthorhombic when the tilts are 0; any origin: the minimum image
+// convention only uses differences). A two-dimensional box is periodic in x
+// and y (with tilt xy) and open in z, for scenes in the z = 0 plane.
 struct Box {
   bool periodic = false;
   std::array<double, 3> length = {0, 0, 0};
+  std::array<double, 3> tilt = {0, 0, 0};  // xy, xz, yz
+  bool two_dimensional = false;
 
   static Box open() { return {}; }
-  // Throws std::invalid_argument unless every length is positive and finite.
+  // Throws std::invalid_argument unless every length is positive and finite
+  // (and every tilt finite).
   static Box periodic_box(double lx, double ly, double lz);
+  static Box triclinic(double lx, double ly, double lz, double xy, double xz, double yz);
+  static Box two_dimensional_box(double lx, double ly, double xy = 0);
+  // From LAMMPS, whose tilts are lengths (xy, xz, yz of a data file's
+  // header): xy / Ly, xz / Lz, yz / Lz here.
+  static Box from_lammps(double lx, double ly, double lz, double xy, double xz, double yz);
+  // The tilts as LAMMPS writes them: xy Ly, xz Lz, yz Lz.
+  std::array<double, 3> lammps_tilts() const;
+
+  bool periodic_along(int axis) const { return periodic && !(two_dimensional && axis == 2); }
+  bool orthorhombic() const { return tilt[0] == 0 && tilt[1] == 0 && tilt[2] == 0; }
+  // The distance between the faces of the box across each axis (the
+  // lengths when orthorhombic): a cutoff's reach must be at most half of it.
+  std::array<double, 3> perpendicular_widths() const;
 };
 
 // Particles as structure of arrays: centre, quadratic form Q (6 numbers,

@@ -28,12 +28,31 @@ constexpr int cells_per_reach = 1;
 
 }  // namespace
 
-int CellLists::cell_of(const ClassGrid& grid, int k, double x) const {
+BoxGeometry::BoxGeometry(const Box& box) {
+  if (!box.periodic) return;
+  for (int k = 0; k < 3; ++k) periodic[k] = box.periodic_along(k);
+  triclinic = !box.orthorhombic();
+  const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
+  const double xy = box.tilt[0], xz = box.tilt[1], yz = box.tilt[2];
+  // h = [[Lx, xy Ly, xz Lz], [0, Ly, yz Lz], [0, 0, Lz]]; in 2D the open z
+  // axis has no lattice vector.
+  h[0][0] = lx;
+  h[0][1] = xy * ly;
+  h[1][1] = ly;
+  if (periodic[2]) {
+    h[0][2] = xz * lz;
+    h[1][2] = yz * lz;
+    h[2][2] = lz;
+  }
+  width = box.perpendicular_widths();
+}
+
+int CellLists::cell_of(const ClassGrid& grid, int k, double u) const {
   // Clamped before the conversion, which is undefined beyond int's range:
   // clamping keeps particles within a reach of each other within span cells
   // of each other (it is monotone and shrinks distances), so no pair is lost.
   const int n = grid.cells[k];
-  const double c = (box.periodic ? x : x - origin[k]) * grid.inverse_side[k];
+  const double c = u * grid.inverse_side[k];
   return c >= double(n - 1) ? n - 1 : (c > 0 ? int(c) : 0);
 }
 
@@ -41,6 +60,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
                            int threads) {
   CellLists lists;
   lists.box = box;
+  lists.geometry = BoxGeometry(box);
+  const BoxGeometry& geometry = lists.geometry;
   const std::size_t n = particles.size();
   const std::vector<double>& bounding = particles.bounding_radius();
   if (n == 0) return lists;
@@ -65,6 +86,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   lists.identical_shapes = largest - smallest <= 1e-12 * largest &&
                            inscribed_high - inscribed_low <= 1e-12 * inscribed_high;
   for (int k = 0; k < 3; ++k) {
+    if (geometry.periodic[k]) continue;  // (only open axes need the extent)
     const std::vector<double>& c = particles.centre(k);
     double lo = low[k], hi = high[k];
 #pragma omp parallel for num_threads(threads) reduction(min : lo) reduction(max : hi)
@@ -75,7 +97,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     low[k] = lo;
     high[k] = hi;
     // Open boundaries: differences of centres must be finite.
-    if (!box.periodic && !std::isfinite(hi - lo)) {
+    if (!std::isfinite(hi - lo)) {
       char text[200];
       std::snprintf(text, sizeof text,
                     "screen_pairs: the centres span more than the largest double along axis %d "
@@ -88,11 +110,14 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   // The coarse test's slack: the wrapped positions are within a few eps of
   // the largest coordinate (or box length) of their exact values, and the
   // reach within a few eps of the largest reach; a thousand times both.
-  // (Periodic: the wrapped positions, within [0, L] whatever the centres.)
+  // (Periodic: the wrapped positions, within the box whatever the centres:
+  // their coordinates at most the sum of a row of h.)
   double scale = 2 * cutoff * largest;
   for (int k = 0; k < 3; ++k)
-    scale = box.periodic ? std::max(scale, box.length[k])
-                         : std::max({scale, std::abs(low[k]), std::abs(high[k])});
+    scale = geometry.periodic[k]
+                ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
+                                      std::abs(geometry.h[k][2]))
+                : std::max({scale, std::abs(low[k]), std::abs(high[k])});
   lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
   lists.largest_reach = cutoff * largest;
 
@@ -123,12 +148,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (;;) {
       double total = 1;
       for (int k = 0; k < 3; ++k) {
-        const double extent = box.periodic ? box.length[k] : high[k] - low[k];
-        double cells = box.periodic ? std::max(1.0, std::floor(extent / side))
-                                    : std::floor(extent / side) + 1;
+        const bool periodic = geometry.periodic[k];
+        const double extent = periodic ? geometry.width[k] : high[k] - low[k];
+        double cells = periodic ? std::max(1.0, std::floor(extent / side))
+                                : std::floor(extent / side) + 1;
         if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
         grid.cells[k] = int(cells);
-        grid.inverse_side[k] = box.periodic ? grid.cells[k] / extent : 1 / side;
+        grid.inverse_side[k] = periodic ? grid.cells[k] / extent : 1 / side;
         total *= grid.cells[k];
       }
       if (total <= limit) break;
@@ -143,9 +169,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     const ClassGrid& grid = lists.grids[size_class[i]];
-    const int a = lists.cell_of(grid, 0, lists.wrapped(0, particles.centre(0)[i]));
-    const int b = lists.cell_of(grid, 1, lists.wrapped(1, particles.centre(1)[i]));
-    const int c = lists.cell_of(grid, 2, lists.wrapped(2, particles.centre(2)[i]));
+    const double x[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
+    double w[3], u[3];
+    geometry.wrap(x, w);
+    lists.cell_space(w, u);
+    const int a = lists.cell_of(grid, 0, u[0]);
+    const int b = lists.cell_of(grid, 1, u[1]);
+    const int c = lists.cell_of(grid, 2, u[2]);
     cell[i] = std::uint32_t((std::size_t(a) * std::size_t(grid.cells[1]) + std::size_t(b)) *
                                 std::size_t(grid.cells[2]) +
                             std::size_t(c));
@@ -175,10 +205,12 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     const std::size_t at = cell[i];
     CoarseMember& coarse = grid.coarse[at];
     Member& member = grid.member[at];
+    const double x[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
+    double w[3];
+    geometry.wrap(x, w);
     for (int k = 0; k < 3; ++k) {
-      const double w = lists.wrapped(k, particles.centre(k)[i]);
-      coarse.wrapped[k] = w;
-      member.position[k] = w;
+      coarse.wrapped[k] = w[k];
+      member.position[k] = w[k];
     }
     coarse.reach = cutoff * bounding[i];
     for (int k = 0; k < 6; ++k) member.q[k] = particles.q(k)[i];

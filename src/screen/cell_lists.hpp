@@ -78,9 +78,83 @@ struct ClassGrid {
   std::size_t size() const { return member.size(); }
 };
 
+// The box as the cell lists use it: which axes are periodic, the lattice
+// vectors (the columns of h, Box), and the perpendicular widths.
+//
+// Cells are laid out in cell space: along a periodic axis k the fractional
+// coordinate s_k = (h^-1 x)_k times the perpendicular width w_k (x_k itself
+// when the box is orthorhombic), along an open axis the coordinate from the
+// lowest centre. Two centres a distance d apart differ by at most d in
+// every cell-space coordinate (|delta s_k| w_k is their distance across
+// the planes of the other two lattice vectors), so that cells as wide as the
+// reach hold every partner within one cell, whatever the tilts.
+struct BoxGeometry {
+  std::array<bool, 3> periodic = {false, false, false};
+  bool triclinic = false;             // periodic with a tilt
+  double h[3][3] = {};                // lattice vectors as columns (periodic axes)
+  std::array<double, 3> width = {};   // perpendicular widths (periodic axes)
+
+  BoxGeometry() = default;
+  explicit BoxGeometry(const Box& box);
+
+  // h^-1 x (upper triangular: back substitution), periodic axes only.
+  void fractional(const double x[3], double s[3]) const {
+    s[2] = periodic[2] ? x[2] / h[2][2] : 0;
+    s[1] = (x[1] - h[1][2] * s[2]) / h[1][1];
+    s[0] = (x[0] - h[0][1] * s[1] - h[0][2] * s[2]) / h[0][0];
+  }
+  // x wrapped into the box along the periodic axes. Orthorhombic: the exact
+  // residue per axis (wrap_into_box); triclinic: through the fractional
+  // coordinates, to a few eps of the lengths.
+  void wrap(const double x[3], double w[3]) const {
+    if (!triclinic) {
+      for (int k = 0; k < 3; ++k) w[k] = periodic[k] ? wrap_into_box(x[k], h[k][k]) : x[k];
+      return;
+    }
+    double s[3];
+    fractional(x, s);
+    for (int k = 0; k < 3; ++k)
+      if (periodic[k]) s[k] = wrap_into_box(s[k], 1);
+    for (int r = 0; r < 3; ++r) {
+      if (!periodic[r]) {
+        w[r] = x[r];
+        continue;
+      }
+      w[r] = 0;
+      for (int c = r; c < 3; ++c)
+        if (periodic[c]) w[r] += h[r][c] * s[c];
+    }
+  }
+  // sum_k shift[k] a_k: the image shift of a run of cells.
+  void shift_vector(const int shift[3], double v[3]) const {
+    for (int r = 0; r < 3; ++r) {
+      v[r] = 0;
+      for (int c = r; c < 3; ++c)
+        if (shift[c] != 0) v[r] += double(shift[c]) * h[r][c];
+    }
+  }
+  // r by the minimum image: the nearest lattice point subtracted in
+  // fractional coordinates (per axis when orthorhombic).
+  void minimum_image(double r[3]) const {
+    if (!triclinic) {
+      for (int k = 0; k < 3; ++k)
+        if (periodic[k]) r[k] -= h[k][k] * std::nearbyint(r[k] / h[k][k]);
+      return;
+    }
+    double s[3];
+    fractional(r, s);
+    int shift[3];
+    for (int k = 0; k < 3; ++k) shift[k] = periodic[k] ? -int(std::nearbyint(s[k])) : 0;
+    double v[3];
+    shift_vector(shift, v);
+    for (int k = 0; k < 3; ++k) r[k] += v[k];
+  }
+};
+
 struct CellLists {
   Box box;
-  std::array<double, 3> origin = {0, 0, 0};  // open boxes: the lower corner of all centres
+  BoxGeometry geometry;
+  std::array<double, 3> origin = {0, 0, 0};  // open axes: the lowest centre coordinates
   std::vector<ClassGrid> grids;              // by class, largest radii first
   // How far the coarse distance test (wrapped positions, reach rounded) may
   // be from the exact one, as a length: it lets a pair through when its
@@ -91,12 +165,18 @@ struct CellLists {
   // coarse test then compares every pair with one reach, read from no member.
   bool identical_shapes = false;
 
-  // A coordinate wrapped into [0, L] when periodic (as given otherwise).
-  double wrapped(int k, double x) const {
-    return box.periodic ? wrap_into_box(x, box.length[k]) : x;
+  // The cell-space coordinates of a wrapped centre (see BoxGeometry).
+  void cell_space(const double w[3], double u[3]) const {
+    if (geometry.triclinic) {
+      double s[3];
+      geometry.fractional(w, s);
+      for (int k = 0; k < 3; ++k) u[k] = geometry.periodic[k] ? s[k] * geometry.width[k] : w[k] - origin[k];
+      return;
+    }
+    for (int k = 0; k < 3; ++k) u[k] = geometry.periodic[k] ? w[k] : w[k] - origin[k];
   }
-  // The cell of a (wrapped) coordinate along axis k.
-  int cell_of(const ClassGrid& grid, int k, double x) const;
+  // The cell of a cell-space coordinate along axis k.
+  int cell_of(const ClassGrid& grid, int k, double u) const;
 };
 
 // Builds the classes and their grids (threads for the per-particle work).
@@ -124,16 +204,16 @@ struct CellRuns {
   bool nearest_image = false;
 };
 
-inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double x) {
+inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double u) {
   CellRuns runs;
   const int n = grid.cells[k], span = grid.span;
-  const int centre = lists.cell_of(grid, k, x);
+  const int centre = lists.cell_of(grid, k, u);
   auto add = [&](int first, int last, int shift) {
     runs.first[runs.count] = first;
     runs.last[runs.count] = last;
     runs.shift[runs.count++] = shift;
   };
-  if (!lists.box.periodic) {
+  if (!lists.geometry.periodic[k]) {
     add(std::max(0, centre - span), std::min(n - 1, centre + span), 0);
   } else if (n < 2 * span + 1) {
     runs.nearest_image = true;
@@ -163,9 +243,10 @@ inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, in
 // then. An exception from the callbacks (or an allocation) stops the search
 // and is rethrown here, after the threads have joined.
 template <bool coarse_filter, class OnCandidate, class Done>
-void search_candidates(const CellLists& lists, const Box& box, int threads,
+void search_candidates(const CellLists& lists, int threads,
                        const std::function<void(double)>& progress, OnCandidate&& on_candidate,
                        Done&& done) {
+  const BoxGeometry& geometry = lists.geometry;
   std::size_t total = 0;
   std::vector<std::size_t> done_before(lists.grids.size() + 1, 0);  // members of earlier classes
   for (std::size_t g = 0; g < lists.grids.size(); ++g) {
@@ -188,12 +269,14 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
         c.i = &i;
         const CoarseMember& coarse_i = home.coarse[at];
         const double reach_i = coarse_i.reach + lists.slack;
+        double u_i[3];  // i's cell-space coordinates
+        lists.cell_space(coarse_i.wrapped, u_i);
         // Classes of radii at least as large as i's (indices 0 .. own).
         for (std::size_t g = 0; g <= own; ++g) {
           const ClassGrid& grid = lists.grids[g];
-          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, coarse_i.wrapped[0]),
-                                    neighbour_runs(lists, grid, 1, coarse_i.wrapped[1]),
-                                    neighbour_runs(lists, grid, 2, coarse_i.wrapped[2])};
+          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0]),
+                                    neighbour_runs(lists, grid, 1, u_i[1]),
+                                    neighbour_runs(lists, grid, 2, u_i[2])};
           const bool nearest_image =
               runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
           // The members of one run of cells along z: contiguous.
@@ -204,17 +287,16 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
             if (g == own) begin = std::max(begin, std::uint32_t(at + 1));
             if (begin >= end) return;
             compared += end - begin;
+            double image[3];  // the run's image shift, sum_k shift[k] a_k
+            geometry.shift_vector(shift, image);
             double origin[3];  // i's wrapped position seen from the members' images
-            for (int k = 0; k < 3; ++k)
-              origin[k] = coarse_i.wrapped[k] - double(shift[k]) * box.length[k];
+            for (int k = 0; k < 3; ++k) origin[k] = coarse_i.wrapped[k] - image[k];
             const CoarseMember* coarse = grid.coarse.data();
             for (std::uint32_t m = begin; m < end; ++m) {
               if (coarse_filter) {
                 double d[3] = {coarse[m].wrapped[0] - origin[0], coarse[m].wrapped[1] - origin[1],
                                coarse[m].wrapped[2] - origin[2]};
-                if (nearest_image)
-                  for (int k = 0; k < 3; ++k)
-                    d[k] -= box.length[k] * std::nearbyint(d[k] / box.length[k]);
+                if (nearest_image) geometry.minimum_image(d);
                 const double limit = one_reach ? reach_i + lists.largest_reach
                                                : reach_i + coarse[m].reach;
                 if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
@@ -224,11 +306,9 @@ void search_candidates(const CellLists& lists, const Box& box, int threads,
               c.j = &j;
               for (int k = 0; k < 3; ++k) {
                 c.r[k] = j.position[k] - i.position[k];
-                if (shift[k] != 0) c.r[k] += double(shift[k]) * box.length[k];
+                if (image[k] != 0) c.r[k] += image[k];
               }
-              if (nearest_image)
-                for (int k = 0; k < 3; ++k)
-                  c.r[k] -= box.length[k] * std::nearbyint(c.r[k] / box.length[k]);
+              if (nearest_image) geometry.minimum_image(c.r);
               on_candidate(thread, c);
             }
           };

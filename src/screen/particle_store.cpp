@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -13,15 +14,65 @@
 
 namespace pwcontact {
 
-Box Box::periodic_box(double lx, double ly, double lz) {
-  for (double l : {lx, ly, lz})
+namespace {
+
+void check_lengths(std::initializer_list<double> lengths) {
+  for (double l : lengths)
     if (!(l > 0) || !std::isfinite(l))
       throw std::invalid_argument("Box: a periodic box needs positive, finite lengths, got " +
                                   std::to_string(l));
+}
+
+void check_tilts(std::initializer_list<double> tilts) {
+  for (double t : tilts)
+    if (!std::isfinite(t))
+      throw std::invalid_argument("Box: tilt factors must be finite, got " + std::to_string(t));
+}
+
+}  // namespace
+
+Box Box::periodic_box(double lx, double ly, double lz) { return triclinic(lx, ly, lz, 0, 0, 0); }
+
+Box Box::triclinic(double lx, double ly, double lz, double xy, double xz, double yz) {
+  check_lengths({lx, ly, lz});
+  check_tilts({xy, xz, yz});
   Box box;
   box.periodic = true;
   box.length = {lx, ly, lz};
+  box.tilt = {xy, xz, yz};
   return box;
+}
+
+Box Box::two_dimensional_box(double lx, double ly, double xy) {
+  check_lengths({lx, ly});
+  check_tilts({xy});
+  Box box;
+  box.periodic = true;
+  box.two_dimensional = true;
+  box.length = {lx, ly, 0};
+  box.tilt = {xy, 0, 0};
+  return box;
+}
+
+Box Box::from_lammps(double lx, double ly, double lz, double xy, double xz, double yz) {
+  check_lengths({lx, ly, lz});
+  check_tilts({xy, xz, yz});
+  return triclinic(lx, ly, lz, xy / ly, xz / lz, yz / lz);
+}
+
+std::array<double, 3> Box::lammps_tilts() const {
+  return {tilt[0] * length[1], tilt[1] * length[2], tilt[2] * length[2]};
+}
+
+std::array<double, 3> Box::perpendicular_widths() const {
+  // V / |a_j x a_k| for the lattice vectors a1 = (Lx, 0, 0),
+  // a2 = (xy Ly, Ly, 0), a3 = (xz Lz, yz Lz, Lz):
+  // |a2 x a3| = Ly Lz sqrt(1 + xy^2 + (xy yz - xz)^2), |a3 x a1| = Lz Lx
+  // sqrt(1 + yz^2), |a1 x a2| = Lx Ly. In 2D only x and y count.
+  const double xy = tilt[0], xz = two_dimensional ? 0 : tilt[1], yz = two_dimensional ? 0 : tilt[2];
+  const double c = xy * yz - xz;
+  return {length[0] / std::sqrt(1 + xy * xy + c * c), length[1] / std::sqrt(1 + yz * yz),
+          length[2]};
 }
 
 template <class Visit>

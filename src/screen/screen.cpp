@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -238,11 +239,13 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
   const std::vector<double>& bounding = particles.bounding_radius();
   const double largest = *std::max_element(bounding.begin(), bounding.end());
   const double reach = options.cutoff * 2 * largest;
+  const std::array<double, 3> widths = box.perpendicular_widths();
   for (int k = 0; k < 3; ++k)
-    if (!(2 * reach <= box.length[k]))
+    if (box.periodic_along(k) && !(2 * reach <= widths[k]))
       throw std::invalid_argument(
-          "screen_pairs: the periodic box is too small for the cutoff: length " +
-          std::to_string(box.length[k]) + " along axis " + std::to_string(k) +
+          "screen_pairs: the periodic box is too small for the cutoff: its width " +
+          std::to_string(widths[k]) + " across axis " + std::to_string(k) +
+          (box.orthorhombic() ? std::string() : " (between the faces of the tilted box)") +
           " is less than twice the largest reach cutoff * 2 R_max = " + std::to_string(reach) +
           " (the minimum image convention would miss pairs)");
   return options;
@@ -377,7 +380,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   // Candidates and prefilters; the undecided pairs solved chunk by chunk.
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
   screen::search_candidates<true>(
-      lists, box, threads, options.progress,
+      lists, threads, options.progress,
       [&](int thread, const screen::Candidate& c) {
         ThreadPairs& mine = per_thread[std::size_t(thread)];
         const screen::Member& i = *c.i;
@@ -422,6 +425,7 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   const std::vector<double>& inscribed = particles.inscribed_radius();
   const std::vector<double>& sphere = particles.sphere_radius();
   std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+  const screen::BoxGeometry geometry(box);
   detail::ParallelErrors errors;
 #pragma omp parallel num_threads(threads)
   {
@@ -429,17 +433,15 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
 #pragma omp for schedule(static)
     for (std::size_t k = 0; k < count; ++k) errors.run([&] {
       const std::uint32_t i = first[k], j = second[k];
-      double r[3];
-      for (int a = 0; a < 3; ++a) {
-        // The residues in the box (exact, as the cell lists'), then the
-        // minimum image.
-        r[a] = particles.centre(a)[j] - particles.centre(a)[i];
-        if (box.periodic) {
-          r[a] = screen::wrap_into_box(particles.centre(a)[j], box.length[a]) -
-                 screen::wrap_into_box(particles.centre(a)[i], box.length[a]);
-          r[a] -= box.length[a] * std::nearbyint(r[a] / box.length[a]);
-        }
-      }
+      // The centres wrapped into the box (as the cell lists do), then the
+      // minimum image of their difference.
+      const double xi[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
+      const double xj[3] = {particles.centre(0)[j], particles.centre(1)[j], particles.centre(2)[j]};
+      double wi[3], wj[3], r[3];
+      geometry.wrap(xi, wi);
+      geometry.wrap(xj, wj);
+      for (int a = 0; a < 3; ++a) r[a] = wj[a] - wi[a];
+      geometry.minimum_image(r);
       const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
       ++mine.candidates;
       if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) return;
@@ -469,7 +471,7 @@ void for_each_candidate_pair(
   threads = threads > 0 ? threads : omp_get_max_threads();
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
   screen::search_candidates<false>(
-      lists, box, threads, {},
+      lists, threads, {},
       [&](int thread, const screen::Candidate& c) {
         if (c.i->index < c.j->index) {
           visit(thread, c.i->index, c.j->index, c.r);
