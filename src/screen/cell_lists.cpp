@@ -170,9 +170,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   for (std::size_t i = 0; i < n; ++i) {
     const ClassGrid& grid = lists.grids[size_class[i]];
     const double x[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
-    double w[3], u[3];
-    geometry.wrap(x, w);
-    lists.cell_space(w, u);
+    double u[3];
+    lists.cell_space_of_centre(x, u);
     const int a = lists.cell_of(grid, 0, u[0]);
     const int b = lists.cell_of(grid, 1, u[1]);
     const int c = lists.cell_of(grid, 2, u[2]);

@@ -114,7 +114,7 @@ struct BoxGeometry {
     double s[3];
     fractional(x, s);
     for (int k = 0; k < 3; ++k)
-      if (periodic[k]) s[k] = wrap_into_box(s[k], 1);
+      if (periodic[k]) s[k] -= std::floor(s[k]);  // (s is rounded already: no fmod needed)
     for (int r = 0; r < 3; ++r) {
       if (!periodic[r]) {
         w[r] = x[r];
@@ -174,6 +174,21 @@ struct CellLists {
       return;
     }
     for (int k = 0; k < 3; ++k) u[k] = geometry.periodic[k] ? w[k] : w[k] - origin[k];
+  }
+  // The cell-space coordinates of a centre as given (wrapped on the way):
+  // for a triclinic box straight from its fractional coordinates, without
+  // the Cartesian wrapped position.
+  void cell_space_of_centre(const double x[3], double u[3]) const {
+    if (geometry.triclinic) {
+      double s[3];
+      geometry.fractional(x, s);
+      for (int k = 0; k < 3; ++k)
+        u[k] = geometry.periodic[k] ? (s[k] - std::floor(s[k])) * geometry.width[k] : x[k] - origin[k];
+      return;
+    }
+    double w[3];
+    geometry.wrap(x, w);
+    cell_space(w, u);
   }
   // The cell of a cell-space coordinate along axis k.
   int cell_of(const ClassGrid& grid, int k, double u) const;
