@@ -119,6 +119,29 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
   return scene;
 }
 
+SpheroidScene ellipse_scene(std::size_t n, std::uint64_t seed, double packing, double max_aspect,
+                            int threads) {
+  constexpr std::size_t block = 4096;
+  const double area = 3.14159265358979323846 * 0.25;
+  const double length = std::sqrt(double(n) * area / packing);
+  SpheroidScene scene{{}, Box::two_dimensional_box(length, length)};
+  scene.particles.resize(n);
+  const std::size_t blocks = (n + block - 1) / block;
+  const double log_aspect = std::log(max_aspect);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads > 0 ? threads : omp_get_max_threads())
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::mt19937_64 engine(seed * 0x9E3779B97F4A7C15ull + b);
+    for (std::size_t i = b * block; i < std::min(n, (b + 1) * block); ++i) {
+      const double aspect = std::exp(log_aspect * (2 * uniform01(engine) - 1));
+      const double minor = 0.5 / std::sqrt(aspect);  // a b = 0.5^2
+      const double x = length * uniform01(engine), y = length * uniform01(engine);
+      const double theta = 6.283185307179586 * uniform01(engine);
+      scene.particles.set_ellipse(i, x, y, minor * aspect, minor, theta);
+    }
+  }
+  return scene;
+}
+
 PairBatch<float> to_float(const PairBatch<double>& pairs) {
   PairBatch<float> out(pairs.size());
   auto copy = [](const std::vector<double>& from, std::vector<float>& to) {

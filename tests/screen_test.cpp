@@ -13,6 +13,8 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <limits>
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -585,6 +587,93 @@ TEST(Screen, LammpsBoxesConvertToTheHoomdConventionAndBack) {
     const auto t = b.lammps_tilts();
     const Box back = Box::from_lammps(b.length[0], b.length[1], b.length[2], t[0], t[1], t[2]);
     for (int a = 0; a < 3; ++a) EXPECT_NEAR(back.tilt[a], b.tilt[a], 4e-16) << k;
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Two dimensions
+
+// The 2D contact function of two ellipses (2x2 forms a, b: xx, xy, yy) at
+// separation r, by ternary search of the concave f(lambda) = lambda (1 -
+// lambda) r^T M^-1 r, M = (1 - lambda) A + lambda B, in long double: an
+// oracle that shares nothing with the library (no 3D form, no Newton step).
+long double ellipse_mu2(const long double r[2], const long double a[3], const long double b[3]) {
+  auto f = [&](long double lambda) {
+    const long double m00 = (1 - lambda) * a[0] + lambda * b[0];
+    const long double m01 = (1 - lambda) * a[1] + lambda * b[1];
+    const long double m11 = (1 - lambda) * a[2] + lambda * b[2];
+    const long double det = m00 * m11 - m01 * m01;
+    const long double form = (m11 * r[0] * r[0] - 2 * m01 * r[0] * r[1] + m00 * r[1] * r[1]) / det;
+    return lambda * (1 - lambda) * form;
+  };
+  long double lo = 0, hi = 1;
+  for (int k = 0; k < 200; ++k) {
+    const long double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+    if (f(m1) < f(m2)) lo = m1; else hi = m2;
+  }
+  return f((lo + hi) / 2);
+}
+
+TEST(Screen, EllipsesInTwoDimensionsMatchABruteForceWithThe2DContactFunction) {
+  // Ellipses (aspect 1/3 .. 3, packing fraction 0.5) in square and tilted
+  // 2D boxes; every pair of every image against the 2D oracle; with mu^2,
+  // the screen's mu^2 is the 2D one.
+  for (double xy : {0.0, 0.3, -0.6}) {
+    const pwcontact::SpheroidScene scene = pwcontact::ellipse_scene(1500, 91, 0.5, 3);
+    const Box box = Box::two_dimensional_box(scene.box.length[0], scene.box.length[1], xy);
+    const ParticleStore& s = scene.particles;
+    const double lx = box.length[0], ly = box.length[1];
+    std::set<std::pair<std::uint32_t, std::uint32_t>> expected;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, long double> mu2_of;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, double> tolerance_of;
+    const double cutoff = 1.1;
+    for (std::uint32_t i = 0; i < s.size(); ++i)
+      for (std::uint32_t j = i + 1; j < s.size(); ++j) {
+        const long double a[3] = {s.q(0)[i], s.q(1)[i], s.q(3)[i]};
+        const long double b[3] = {s.q(0)[j], s.q(1)[j], s.q(3)[j]};
+        const double reach = cutoff * (s.bounding_radius()[i] + s.bounding_radius()[j]);
+        long double best = std::numeric_limits<long double>::infinity(), distance = 0;
+        for (int n1 = -2; n1 <= 2; ++n1)
+          for (int n2 = -2; n2 <= 2; ++n2) {
+            const long double r[2] = {(long double)s.centre(0)[j] - s.centre(0)[i] + n1 * lx + n2 * xy * ly,
+                                      (long double)s.centre(1)[j] - s.centre(1)[i] + n2 * ly};
+            if (r[0] * r[0] + r[1] * r[1] >= reach * reach) continue;
+            const long double mu2 = ellipse_mu2(r, a, b);
+            if (mu2 < best) {
+              best = mu2;
+              distance = std::sqrt(r[0] * r[0] + r[1] * r[1]);
+            }
+          }
+        if (best < cutoff * cutoff) {
+          expected.insert({i, j});
+          mu2_of[{i, j}] = best;
+          // In a tilted box the centres are wrapped through fractional
+          // coordinates, to a few eps L: mu^2 (quadratic in r) moves by
+          // up to ~8 eps L / |r| relatively.
+          tolerance_of[{i, j}] =
+              1e-13 + 16 * std::numeric_limits<double>::epsilon() * lx * (1 + std::abs(xy)) / double(distance);
+        }
+      }
+    for (bool with_mu2 : {false, true}) {
+      ScreenedPairs got;
+      screen(s, box, cutoff, got, with_mu2);
+      std::set<std::pair<std::uint32_t, std::uint32_t>> found;
+      double worst = 0;
+      for (std::size_t k = 0; k < got.size(); ++k) {
+        found.insert({got.i[k], got.j[k]});
+        if (with_mu2 && mu2_of.count({got.i[k], got.j[k]}))
+          worst = std::max(worst, double(std::abs(got.mu2[k] - mu2_of[{got.i[k], got.j[k]}]) /
+                                         mu2_of[{got.i[k], got.j[k]}]) /
+                                      tolerance_of[{got.i[k], got.j[k]}]);
+      }
+      EXPECT_EQ(found, expected) << "tilt " << xy << (with_mu2 ? ", with mu2" : "");
+      std::printf("[ measured ] 2D, tilt %.1f%s: %zu pairs (%zu by the 2D oracle), mu2 within %.3g "
+                  "of its tolerance from the 2D oracle's\n",
+                  xy, with_mu2 ? ", with mu2" : "", found.size(), expected.size(), worst);
+      if (with_mu2) {
+        EXPECT_LE(worst, 1);
+      }
+    }
   }
 }
 

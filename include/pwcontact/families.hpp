@@ -50,4 +50,12 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing =
                              int threads = 0,
                              const std::function<void(double fraction)>& progress = {});
 
+// A scene of n random ellipses in a periodic square two-dimensional box:
+// centres uniform, angles uniform, aspect ratios log-uniform in
+// [1 / max_aspect, max_aspect], each with the area of a circle of radius
+// 0.5, the box sized for the packing fraction (total ellipse area over box
+// area). Reproducible on every platform and thread count, as spheroid_scene.
+SpheroidScene ellipse_scene(std::size_t n, std::uint64_t seed, double packing = 0.5,
+                            double max_aspect = 3, int threads = 0);
+
 }  // namespace pwcontact

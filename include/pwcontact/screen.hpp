@@ -85,6 +85,14 @@ class ParticleStore {
   void set(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q);
   void set_axes(std::size_t i, const std::array<double, 3>& centre,
                 const std::array<double, 3>& semi_axes, const std::array<double, 4>& quaternion);
+  // An ellipse in the z = 0 plane: centre (x, y), semi-axes a and b (positive,
+  // finite), the a axis at angle theta (radians) from x. Stored as the
+  // ellipsoid with semi-axes a, b and min(a, b) along z: with Q block
+  // diagonal and r12 in the plane, its contact function is exactly the 2D one
+  // (Q(lambda)^-1 keeps the blocks apart), whatever the third semi-axis. For
+  // a two-dimensional Box.
+  void add_ellipse(double x, double y, double a, double b, double theta);
+  void set_ellipse(std::size_t i, double x, double y, double a, double b, double theta);
 
   const std::vector<double>& centre(int k) const { return centre_[k]; }
   const std::vector<double>& q(int k) const { return q_[k]; }

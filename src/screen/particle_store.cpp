@@ -165,6 +165,34 @@ void ParticleStore::store(std::size_t i, const std::array<double, 3>& centre,
   sphere_[i] = sphere ? std::sqrt(q[0]) : 0;
 }
 
+void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, double b,
+                                double theta) {
+  check_centre(i, {x, y, 0});
+  if (!(a > 0) || !std::isfinite(a) || !(b > 0) || !std::isfinite(b))
+    throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite");
+  if (!std::isfinite(theta)) throw std::invalid_argument(particle_name(i) + ": the angle is not finite");
+  const double c = std::cos(theta), s = std::sin(theta), a2 = a * a, b2 = b * b;
+  const double smallest = std::min(a, b);
+  // Q = R diag(a^2, b^2) R^T in the plane, min(a, b)^2 along z; a circle
+  // is stored exactly as a^2 I (a sphere), as add_axes does.
+  const std::array<double, 6> q =
+      a == b ? std::array<double, 6>{a2, 0, 0, a2, 0, a2}
+             : std::array<double, 6>{a2 * c * c + b2 * s * s, (a2 - b2) * c * s, 0,
+                                     a2 * s * s + b2 * c * c, 0, smallest * smallest};
+  store(i, {x, y, 0}, q, smallest * smallest, std::max(a, b) * std::max(a, b));
+}
+
+void ParticleStore::add_ellipse(double x, double y, double a, double b, double theta) {
+  const std::size_t i = size();
+  resize(i + 1);
+  try {
+    set_ellipse(i, x, y, a, b, theta);
+  } catch (...) {
+    resize(i);
+    throw;
+  }
+}
+
 void ParticleStore::add_axes(const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
