@@ -243,6 +243,55 @@ TEST(Screen, NeighbourListsWithASkinMatchTheBruteForceAndReportMu2) {
   compare(s, box, 1.3, got, "neighbour list, cutoff 1.3");
 }
 
+TEST(Screen, PerParticleCountsAndNeighbourListsHoldEveryPairOfTheBruteForce) {
+  const SceneSpec spec{900, 0.25, 4, 0.1, 0.5, 11.0, true, 17};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  ScreenedPairs got;
+  screen(s, box, 1.3, got, true);
+  const auto expected = brute_force(s, box, 1.3);
+  const Comparison c = compare(s, box, 1.3, got, "per-particle outputs");
+  ASSERT_EQ(c.differing_within_band, 0u) << "the expectations below assume the same pairs";
+  const std::size_t n = s.size();
+  // Counts and rows straight from the brute force's pairs.
+  std::vector<std::uint32_t> counts(n, 0);
+  std::vector<std::vector<std::uint32_t>> rows(n), upper_rows(n);
+  for (const auto& [i, j] : expected) {
+    ++counts[i];
+    ++counts[j];
+    rows[i].push_back(j);
+    rows[j].push_back(i);
+    upper_rows[i].push_back(j);
+  }
+  EXPECT_EQ(pwcontact::pair_counts(got, n), counts);
+  for (bool both : {true, false}) {
+    const auto list = pwcontact::neighbor_list(got, n, both);
+    ASSERT_EQ(list.offsets.size(), n + 1);
+    ASSERT_EQ(list.mu2.size(), list.neighbors.size());
+    for (std::size_t p = 0; p < n; ++p) {
+      auto row = both ? rows[p] : upper_rows[p];
+      std::sort(row.begin(), row.end());
+      const std::vector<std::uint32_t> listed(list.neighbors.begin() + list.offsets[p],
+                                              list.neighbors.begin() + list.offsets[p + 1]);
+      ASSERT_EQ(listed, row) << "particle " << p << (both ? "" : ", upper rows");
+      // mu^2 belongs to its neighbour (the screen's double accuracy, as above).
+      for (std::size_t k = list.offsets[p]; k < list.offsets[p + 1]; ++k) {
+        const double exact = reference_mu2(s, box, p, list.neighbors[k]);
+        EXPECT_LE(std::abs(list.mu2[k] - exact), 1e-13 * exact) << p << " " << list.neighbors[k];
+      }
+    }
+  }
+  EXPECT_GT(expected.size(), 300u) << "the scene should have many pairs";
+  // Pairs not as the screen gives them are refused, not miscounted.
+  ScreenedPairs unsorted = got;
+  std::swap(unsorted.i[0], unsorted.i[1]);
+  std::swap(unsorted.j[0], unsorted.j[1]);
+  EXPECT_THROW(pwcontact::neighbor_list(unsorted, n), std::invalid_argument);
+  EXPECT_THROW(pwcontact::pair_counts(got, got.j.back()), std::invalid_argument);
+  ScreenedPairs reversed{{3}, {2}, {}};
+  EXPECT_THROW(pwcontact::pair_counts(reversed, n), std::invalid_argument);
+}
+
 TEST(Screen, PairsOfSpheresAreDecidedInClosedFormWithoutASolve) {
   // Polydisperse spheres (aspect 1; radii 0.2 .. 1), dense, periodic: every
   // pair the bounding spheres leave is decided by mu = |r| / (a_i + a_j).

@@ -6,5 +6,6 @@
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/families.hpp"
 #include "pwcontact/reference.hpp"
+#include "pwcontact/scene_files.hpp"
 #include "pwcontact/screen.hpp"
 #include "pwcontact/status.hpp"

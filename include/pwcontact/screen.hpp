@@ -130,6 +130,23 @@ struct ScreenedPairs {
   std::size_t size() const noexcept { return i.size(); }
 };
 
+// What users need per particle, from the pairs found (any ScreenedPairs:
+// sorted, i < j, each once):
+// - the number of pairs each particle is in (its overlaps with cutoff 1);
+std::vector<std::uint32_t> pair_counts(const ScreenedPairs& pairs, std::size_t particles);
+// - the pairs as a neighbour list in CSR form: particle k's neighbours are
+//   neighbors[offsets[k]] .. neighbors[offsets[k + 1] - 1], in increasing
+//   order, with mu2 alongside when the pairs have it; both directions (j
+//   among i's neighbours and i among j's) unless both_directions is false
+//   (then only j > k among k's).
+struct NeighborList {
+  std::vector<std::size_t> offsets;  // particles + 1
+  std::vector<std::uint32_t> neighbors;
+  std::vector<double> mu2;
+};
+NeighborList neighbor_list(const ScreenedPairs& pairs, std::size_t particles,
+                           bool both_directions = true);
+
 // What a screen did, stage by stage.
 struct ScreenReport {
   std::size_t particles = 0;

@@ -483,4 +483,65 @@ void for_each_candidate_pair(
       [](int, std::size_t, std::size_t) {});
 }
 
+namespace {
+
+// The pairs as screen_pairs gives them: of the particles, i < j, sorted by
+// i then j, each once (the neighbour list's rows come sorted from that).
+void check_pairs(const ScreenedPairs& pairs, std::size_t particles, const char* caller) {
+  if (pairs.j.size() != pairs.i.size() || (!pairs.mu2.empty() && pairs.mu2.size() != pairs.i.size()))
+    throw std::invalid_argument(std::string(caller) + ": i, j and mu2 differ in length");
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const auto i = pairs.i[k], j = pairs.j[k];
+    const char* wrong = nullptr;
+    if (j >= particles) wrong = "is not of the particles";
+    else if (i >= j) wrong = "has i >= j";
+    else if (k > 0 && (i < pairs.i[k - 1] || (i == pairs.i[k - 1] && j <= pairs.j[k - 1])))
+      wrong = "is out of order (the pairs must be sorted by i, then j, each once)";
+    if (wrong)
+      throw std::invalid_argument(std::string(caller) + ": pair " + std::to_string(k) + " (" +
+                                  std::to_string(i) + ", " + std::to_string(j) + ") " + wrong +
+                                  " of " + std::to_string(particles));
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> pair_counts(const ScreenedPairs& pairs, std::size_t particles) {
+  check_pairs(pairs, particles, "pair_counts");
+  std::vector<std::uint32_t> counts(particles, 0);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    ++counts[pairs.i[k]];
+    ++counts[pairs.j[k]];
+  }
+  return counts;
+}
+
+NeighborList neighbor_list(const ScreenedPairs& pairs, std::size_t particles,
+                           bool both_directions) {
+  check_pairs(pairs, particles, "neighbor_list");
+  NeighborList list;
+  list.offsets.assign(particles + 1, 0);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    ++list.offsets[pairs.i[k] + 1];
+    if (both_directions) ++list.offsets[pairs.j[k] + 1];
+  }
+  for (std::size_t p = 0; p < particles; ++p) list.offsets[p + 1] += list.offsets[p];
+  const bool with_mu2 = !pairs.mu2.empty();
+  list.neighbors.resize(list.offsets.back());
+  if (with_mu2) list.mu2.resize(list.offsets.back());
+  std::vector<std::size_t> next(list.offsets.begin(), list.offsets.end() - 1);
+  // In the pairs' order (i, then j), particle k receives i < k from the
+  // pairs (i, k) before j > k from the pairs (k, j): each row comes sorted.
+  auto append = [&](std::uint32_t to, std::uint32_t neighbor, std::size_t k) {
+    const std::size_t at = next[to]++;
+    list.neighbors[at] = neighbor;
+    if (with_mu2) list.mu2[at] = pairs.mu2[k];
+  };
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    append(pairs.i[k], pairs.j[k], k);
+    if (both_directions) append(pairs.j[k], pairs.i[k], k);
+  }
+  return list;
+}
+
 }  // namespace pwcontact

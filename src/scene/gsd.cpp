@@ -1,0 +1,341 @@
+// A read-only GSD reader, written from the format's published specification
+// (the "file layer" of GSD 1.x and 2.x, and the "hoomd" schema): a 256-byte
+// header, an index of 32-byte entries (frame, N, location, M, name id,
+// type), a list of chunk names, and raw little-endian chunks.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "parallel_errors.hpp"
+#include "pwcontact/scene_files.hpp"
+#include "scene/shape_json.hpp"
+
+namespace pwcontact {
+namespace {
+
+// The file layer's structures, as stored (little-endian, packed).
+struct Header {
+  std::uint64_t magic;
+  std::uint64_t index_location;
+  std::uint64_t index_allocated_entries;
+  std::uint64_t namelist_location;
+  std::uint64_t namelist_allocated_entries;
+  std::uint32_t schema_version;
+  std::uint32_t gsd_version;
+  char application[64];
+  char schema[64];
+  char reserved[80];
+};
+static_assert(sizeof(Header) == 256, "the GSD header is 256 bytes");
+
+struct IndexEntry {
+  std::uint64_t frame;
+  std::uint64_t n;
+  std::int64_t location;
+  std::uint32_t m;
+  std::uint16_t id;
+  std::uint8_t type;
+  std::uint8_t flags;
+};
+static_assert(sizeof(IndexEntry) == 32, "a GSD index entry is 32 bytes");
+
+constexpr std::uint64_t gsd_magic = 0x65DF65DF65DF65DFull;
+constexpr std::size_t name_segment = 64;  // namelist bytes = 64 x allocated entries
+
+enum ChunkType : std::uint8_t {
+  uint8 = 1, uint16, uint32, uint64, int8, int16, int32, int64, float32, float64, character
+};
+
+std::size_t size_of(std::uint8_t type) {
+  switch (type) {
+    case uint8: case int8: case character: return 1;
+    case uint16: case int16: return 2;
+    case uint32: case int32: case float32: return 4;
+    case uint64: case int64: case float64: return 8;
+    default: return 0;
+  }
+}
+
+class GsdFile {
+ public:
+  explicit GsdFile(const std::string& path) : path_(path) {
+    descriptor_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (descriptor_ < 0)
+      throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
+    struct stat info {};
+    if (fstat(descriptor_, &info) != 0) fail_io();
+    size_ = std::uint64_t(info.st_size);
+    Header header;
+    if (size_ < sizeof header) malformed("shorter than a GSD header (" + std::to_string(size_) + " bytes)");
+    read_at(0, &header, sizeof header);
+    if (header.magic != gsd_magic) malformed("not a GSD file (no GSD magic number)");
+    version_ = header.gsd_version;
+    const std::uint32_t major = version_ >> 16;
+    if (!(major == 1 || major == 2 || version_ == 3))  // 0.3, 1.x, 2.x
+      malformed("GSD file layer version " + std::to_string(major) + "." +
+                std::to_string(version_ & 0xffff) + " is not one this reader knows (1.x, 2.x)");
+    read_names(header);
+    read_index(header);
+  }
+  ~GsdFile() { close(descriptor_); }
+  GsdFile(const GsdFile&) = delete;
+  GsdFile& operator=(const GsdFile&) = delete;
+
+  std::uint64_t frames() const { return index_.empty() ? 0 : index_.back().frame + 1; }
+  const std::string& path() const { return path_; }
+
+  // The entry of `name` in `frame`, null if the frame has none.
+  const IndexEntry* find(std::uint64_t frame, const std::string& name) const {
+    const auto id = ids_.find(name);
+    if (id == ids_.end()) return nullptr;
+    // Version 2 indices are sorted by frame, then id; older ones by frame.
+    auto first = std::lower_bound(index_.begin(), index_.end(), frame,
+                                  [](const IndexEntry& e, std::uint64_t f) { return e.frame < f; });
+    for (; first != index_.end() && first->frame == frame; ++first)
+      if (first->id == id->second) return &*first;
+    return nullptr;
+  }
+
+  // The chunk's values converted to T (numbers only), checked against the
+  // shape the schema gives it.
+  template <class T>
+  std::vector<T> numbers(const IndexEntry& e, const std::string& name, std::uint64_t rows,
+                         std::uint32_t columns) const {
+    if (e.n != rows || e.m != columns)
+      malformed("chunk " + name + " of frame " + std::to_string(e.frame) + " is " +
+                std::to_string(e.n) + "x" + std::to_string(e.m) + ", expected " +
+                std::to_string(rows) + "x" + std::to_string(columns));
+    const std::size_t count = std::size_t(rows) * columns;
+    std::vector<unsigned char> raw = bytes(e, name);
+    std::vector<T> out(count);
+    auto convert = [&](auto tag) {
+      using S = decltype(tag);
+      for (std::size_t k = 0; k < count; ++k) {
+        S v;
+        std::memcpy(&v, raw.data() + k * sizeof(S), sizeof(S));
+        out[k] = T(v);
+      }
+    };
+    switch (e.type) {
+      case uint8: convert(std::uint8_t()); break;
+      case uint16: convert(std::uint16_t()); break;
+      case uint32: convert(std::uint32_t()); break;
+      case uint64: convert(std::uint64_t()); break;
+      case int8: convert(std::int8_t()); break;
+      case int16: convert(std::int16_t()); break;
+      case int32: convert(std::int32_t()); break;
+      case int64: convert(std::int64_t()); break;
+      case float32: convert(float()); break;
+      case float64: convert(double()); break;
+      default: malformed("chunk " + name + " does not hold numbers (type " + std::to_string(e.type) + ")");
+    }
+    return out;
+  }
+
+  // The rows of a chunk of characters, each a zero-terminated string.
+  std::vector<std::string> strings(const IndexEntry& e, const std::string& name) const {
+    if (e.type != int8 && e.type != uint8 && e.type != character)
+      malformed("chunk " + name + " does not hold characters (type " + std::to_string(e.type) + ")");
+    const std::vector<unsigned char> raw = bytes(e, name);
+    std::vector<std::string> rows;
+    for (std::uint64_t r = 0; r < e.n; ++r) {
+      const char* row = reinterpret_cast<const char*>(raw.data() + r * e.m);
+      rows.emplace_back(row, strnlen(row, e.m));
+    }
+    return rows;
+  }
+
+  [[noreturn]] void malformed(const std::string& what) const {
+    throw std::invalid_argument(path_ + ": " + what);
+  }
+
+ private:
+  [[noreturn]] void fail_io() const {
+    throw std::runtime_error("cannot read " + path_ + ": " + std::strerror(errno));
+  }
+
+  void read_at(std::uint64_t offset, void* to, std::size_t count) const {
+    auto* p = static_cast<char*>(to);
+    while (count > 0) {
+      const ssize_t got = pread(descriptor_, p, count, off_t(offset));
+      if (got < 0 && errno == EINTR) continue;
+      if (got < 0) fail_io();
+      if (got == 0) malformed("truncated: a block at byte " + std::to_string(offset) + " ends beyond the file");
+      p += got;
+      offset += std::uint64_t(got);
+      count -= std::size_t(got);
+    }
+  }
+
+  std::vector<unsigned char> bytes(const IndexEntry& e, const std::string& name) const {
+    const std::uint64_t element = size_of(e.type);
+    if (element == 0) malformed("chunk " + name + " has an unknown type " + std::to_string(e.type));
+    // (Overflow-safe: a chunk larger than the file is refused.)
+    if (e.m != 0 && e.n > size_ / e.m / element)
+      malformed("truncated or corrupt: chunk " + name + " of frame " + std::to_string(e.frame) +
+                " (" + std::to_string(e.n) + "x" + std::to_string(e.m) + ") is larger than the file");
+    const std::uint64_t count = e.n * e.m * element;
+    if (e.location < 0 || std::uint64_t(e.location) > size_ || count > size_ - std::uint64_t(e.location))
+      malformed("truncated: chunk " + name + " of frame " + std::to_string(e.frame) +
+                " ends beyond the file (" + std::to_string(size_) + " bytes)");
+    std::vector<unsigned char> raw(count);
+    if (count) read_at(std::uint64_t(e.location), raw.data(), count);
+    return raw;
+  }
+
+  void read_names(const Header& h) {
+    if (h.namelist_allocated_entries > size_ / name_segment ||
+        h.namelist_location > size_ - h.namelist_allocated_entries * name_segment)
+      malformed("truncated or corrupt: the list of chunk names lies beyond the file");
+    std::vector<char> names(h.namelist_allocated_entries * name_segment);
+    if (!names.empty()) read_at(h.namelist_location, names.data(), names.size());
+    const bool fixed = (version_ >> 16) < 2;  // version 1: 64 bytes per name
+    std::size_t at = 0;
+    for (std::uint16_t id = 0; at < names.size() && names[at] != 0; ++id) {
+      const std::size_t length = strnlen(&names[at], names.size() - at);
+      ids_.emplace(std::string(&names[at], length), id);
+      at += fixed ? name_segment : length + 1;
+    }
+  }
+
+  void read_index(const Header& h) {
+    if (h.index_allocated_entries > size_ / sizeof(IndexEntry) ||
+        h.index_location > size_ - h.index_allocated_entries * sizeof(IndexEntry))
+      malformed("truncated or corrupt: the index lies beyond the file");
+    index_.resize(h.index_allocated_entries);
+    if (!index_.empty()) read_at(h.index_location, index_.data(), index_.size() * sizeof(IndexEntry));
+    // The first entry at location 0 ends the list.
+    std::size_t used = 0;
+    while (used < index_.size() && index_[used].location != 0) ++used;
+    index_.resize(used);
+    for (std::size_t k = 1; k < index_.size(); ++k)
+      if (index_[k].frame < index_[k - 1].frame) malformed("corrupt index: frames out of order");
+  }
+
+  std::string path_;
+  int descriptor_ = -1;
+  std::uint64_t size_ = 0;
+  std::uint32_t version_ = 0;
+  std::unordered_map<std::string, std::uint16_t> ids_;
+  std::vector<IndexEntry> index_;
+};
+
+// A chunk of the frame as the hoomd schema defines it: the frame's own, or
+// frame 0's when it has as many rows, or none (the default applies).
+const IndexEntry* chunk(const GsdFile& file, std::uint64_t frame, const std::string& name,
+                        std::uint64_t rows) {
+  if (const IndexEntry* e = file.find(frame, name)) return e;
+  const IndexEntry* first = file.find(0, name);
+  return first && first->n == rows ? first : nullptr;
+}
+
+}  // namespace
+
+Scene read_gsd(const std::string& path, std::int64_t frame) {
+  const GsdFile file(path);
+  Scene scene;
+  scene.frames = file.frames();
+  if (scene.frames == 0) file.malformed("the file has no frames");
+  const std::int64_t count = std::int64_t(scene.frames);
+  if (frame < -count || frame >= count)
+    file.malformed("frame " + std::to_string(frame) + " is not in the file (it has " +
+                   std::to_string(scene.frames) + " frames)");
+  const std::uint64_t f = std::uint64_t(frame < 0 ? count + frame : frame);
+  scene.frame = f;
+  const std::string where = "frame " + std::to_string(f);
+
+  std::uint64_t n = 0;
+  if (const IndexEntry* e = file.find(f, "particles/N") ? file.find(f, "particles/N") : file.find(0, "particles/N"))
+    n = file.numbers<std::uint64_t>(*e, "particles/N", 1, 1)[0];
+  if (n >= (std::uint64_t(1) << 31)) file.malformed(where + ": " + std::to_string(n) + " particles, more than 2^31 - 1");
+
+  std::vector<double> box = {1, 1, 1, 0, 0, 0};
+  if (const IndexEntry* e = chunk(file, f, "configuration/box", 6))
+    box = file.numbers<double>(*e, "configuration/box", 6, 1);
+  unsigned dimensions = 3;
+  if (const IndexEntry* e = chunk(file, f, "configuration/dimensions", 1))
+    dimensions = file.numbers<unsigned>(*e, "configuration/dimensions", 1, 1)[0];
+  if (dimensions != 2 && dimensions != 3)
+    file.malformed(where + ": configuration/dimensions is " + std::to_string(dimensions) + ", not 2 or 3");
+  try {
+    scene.box = dimensions == 2 ? Box::two_dimensional_box(box[0], box[1], box[3])
+                                : Box::triclinic(box[0], box[1], box[2], box[3], box[4], box[5]);
+  } catch (const std::invalid_argument& e) {
+    file.malformed(where + ": configuration/box: " + e.what());
+  }
+
+  std::vector<double> position(3 * n, 0.0);
+  if (const IndexEntry* e = chunk(file, f, "particles/position", n))
+    position = file.numbers<double>(*e, "particles/position", n, 3);
+  std::vector<double> orientation;
+  if (const IndexEntry* e = chunk(file, f, "particles/orientation", n))
+    orientation = file.numbers<double>(*e, "particles/orientation", n, 4);
+  std::vector<std::uint32_t> type_id(n, 0);
+  if (const IndexEntry* e = chunk(file, f, "particles/typeid", n))
+    type_id = file.numbers<std::uint32_t>(*e, "particles/typeid", n, 1);
+  scene.type_names = {"A"};
+  if (const IndexEntry* e = file.find(f, "particles/types") ? file.find(f, "particles/types")
+                                                            : file.find(0, "particles/types"))
+    scene.type_names = file.strings(*e, "particles/types");
+  const std::size_t types = scene.type_names.size();
+  const IndexEntry* shapes_entry = chunk(file, f, "particles/type_shapes", types);
+  if (!shapes_entry)
+    file.malformed(where + ": no particles/type_shapes for its " + std::to_string(types) +
+                   " types: the file does not give the particles' shapes");
+  const std::vector<std::string> shapes_json = file.strings(*shapes_entry, "particles/type_shapes");
+  std::vector<detail::ShapeAxes> shapes;
+  for (std::size_t t = 0; t < types; ++t) {
+    try {
+      shapes.push_back(detail::parse_shape(shapes_json[t], dimensions == 2));
+    } catch (const std::invalid_argument& e) {
+      file.malformed(where + ": type " + std::to_string(t) + " ('" + scene.type_names[t] +
+                     "'): " + e.what());
+    }
+  }
+
+  scene.particles.resize(n);
+  detail::ParallelErrors errors;
+  const std::int64_t signed_n = std::int64_t(n);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t signed_i = 0; signed_i < signed_n; ++signed_i) errors.run([&] {
+    const std::size_t i = std::size_t(signed_i);
+    if (type_id[i] >= types)
+      file.malformed(where + ": particle " + std::to_string(i) + " has typeid " +
+                     std::to_string(type_id[i]) + ", but there are " + std::to_string(types) + " types");
+    const detail::ShapeAxes& shape = shapes[type_id[i]];
+    const std::array<double, 4> q = orientation.empty()
+                                        ? std::array<double, 4>{1, 0, 0, 0}
+                                        : std::array<double, 4>{orientation[4 * i], orientation[4 * i + 1],
+                                                                orientation[4 * i + 2], orientation[4 * i + 3]};
+    try {
+      if (dimensions == 2) {
+        // The angle of the body's x axis in the plane, from the rotation.
+        const double w = q[0], x = q[1], y = q[2], z = q[3], norm = w * w + x * x + y * y + z * z;
+        if (!(norm > 0) || !std::isfinite(norm))
+          throw std::invalid_argument("its orientation is zero or not finite");
+        const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
+        scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0], shape.a[1], theta);
+      } else {
+        scene.particles.set_axes(i, {position[3 * i], position[3 * i + 1], position[3 * i + 2]},
+                                 shape.a, q);
+      }
+    } catch (const std::invalid_argument& e) {
+      file.malformed(where + ": particle " + std::to_string(i) + ": " + e.what());
+    }
+  });
+  errors.rethrow_if_failed();
+  scene.type_id = std::move(type_id);
+  return scene;
+}
+
+}  // namespace pwcontact

@@ -1,0 +1,335 @@
+// Scenes from simulation files: GSD (files written by python3-gsd, at test
+// time when it is installed, and two committed ones from
+// tests/data/write_gsd_scenes.py), LAMMPS data and dump files (committed,
+// written by Debian's lmp from tests/data/lammps_triclinic.in).
+// What is read is checked against what the writer was given; the pairs
+// against a brute force over every periodic image; malformed files against
+// their messages.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "pwcontact/pwcontact.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using pwcontact::Box;
+using pwcontact::Scene;
+
+const fs::path data_dir = PWCONTACT_TEST_DATA;
+
+// Every pair (i < j) with mu < cutoff at some image n1 a1 + n2 a2 + n3 a3
+// (|n| <= 2) of the centres as given, by the reference path.
+std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force(const pwcontact::ParticleStore& s,
+                                                              const Box& box, double cutoff) {
+  const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
+  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const int reach_z = box.two_dimensional ? 0 : 2, reach = box.periodic ? 2 : 0;
+  std::set<std::pair<std::uint32_t, std::uint32_t>> found;
+  for (std::uint32_t i = 0; i < s.size(); ++i)
+    for (std::uint32_t j = i + 1; j < s.size(); ++j) {
+      double qi[6], qj[6];
+      for (int k = 0; k < 6; ++k) qi[k] = s.q(k)[i], qj[k] = s.q(k)[j];
+      bool near = false;
+      for (int n1 = -reach; n1 <= reach && !near; ++n1)
+        for (int n2 = -reach; n2 <= reach && !near; ++n2)
+          for (int n3 = -std::min(reach, reach_z); n3 <= std::min(reach, reach_z) && !near; ++n3) {
+            double r[3];
+            for (int k = 0; k < 3; ++k)
+              r[k] = s.centre(k)[j] - s.centre(k)[i] + n1 * a[0][k] + n2 * a[1][k] + n3 * a[2][k];
+            const auto result = pwcontact::contact_function<double>(r, qi, qj);
+            near = result.status == pwcontact::Status::ok && result.mu2 < cutoff * cutoff;
+          }
+      if (near) found.insert({i, j});
+    }
+  return found;
+}
+
+void expect_screen_matches_brute_force(const Scene& scene, double cutoff, const std::string& what) {
+  pwcontact::ScreenedPairs pairs;
+  pwcontact::ScreenOptions options;
+  options.cutoff = cutoff;
+  pwcontact::screen_pairs(scene.particles, scene.box, options, pairs);
+  std::set<std::pair<std::uint32_t, std::uint32_t>> got;
+  for (std::size_t k = 0; k < pairs.size(); ++k) got.insert({pairs.i[k], pairs.j[k]});
+  const auto expected = brute_force(scene.particles, scene.box, cutoff);
+  EXPECT_EQ(got, expected) << what;
+  EXPECT_GT(expected.size(), 0u) << what << ": the scene should have pairs";
+  std::printf("[ measured ] %s: %zu pairs, the brute force's\n", what.c_str(), got.size());
+}
+
+// The bounding radius the store gives semi-axes a (rounded outwards).
+void expect_radii(const Scene& scene, std::size_t i, double largest, double smallest,
+                  const std::string& what) {
+  EXPECT_NEAR(scene.particles.bounding_radius()[i], largest, 1e-12 * largest) << what << ", particle " << i;
+  EXPECT_NEAR(scene.particles.inscribed_radius()[i], smallest, 1e-12 * smallest) << what << ", particle " << i;
+}
+
+std::string message_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "(no std::invalid_argument)";
+}
+
+// ---------------------------------------------------------------------------
+// GSD
+
+TEST(SceneFiles, ACommittedGsdFileOfTwoTypesInATriclinicBox) {
+  const Scene scene = pwcontact::read_gsd((data_dir / "hoomd_triclinic.gsd").string());
+  EXPECT_EQ(scene.particles.size(), 60u);
+  EXPECT_EQ(scene.frames, 1u);
+  EXPECT_EQ(scene.box.length, (std::array<double, 3>{6, 6, 5}));
+  EXPECT_NEAR(scene.box.tilt[0], 0.3, 1e-7);  // (float32 in the file)
+  EXPECT_NEAR(scene.box.tilt[1], -0.2, 1e-7);
+  EXPECT_NEAR(scene.box.tilt[2], 0.1, 1e-7);
+  ASSERT_EQ(scene.type_names, (std::vector<std::string>{"A", "B"}));
+  for (std::size_t i = 0; i < scene.particles.size(); ++i) {
+    if (scene.type_id[i] == 0)
+      expect_radii(scene, i, 0.6, 0.25, "Ellipsoid a 0.6 b 0.35 c 0.25");
+    else
+      expect_radii(scene, i, 0.35, 0.35, "Sphere diameter 0.7");
+  }
+  expect_screen_matches_brute_force(scene, 1.2, "committed GSD, triclinic");
+}
+
+TEST(SceneFiles, ACommittedGsdFileOfEllipsesInTwoDimensions) {
+  const Scene scene = pwcontact::read_gsd((data_dir / "hoomd_ellipses_2d.gsd").string());
+  EXPECT_TRUE(scene.box.two_dimensional);
+  EXPECT_NEAR(scene.box.tilt[0], 0.25, 1e-7);
+  for (std::size_t i = 0; i < scene.particles.size(); ++i) {
+    EXPECT_EQ(scene.particles.centre(2)[i], 0);
+    expect_radii(scene, i, 0.6, 0.3, "Ellipse a 0.6 b 0.3");
+  }
+  expect_screen_matches_brute_force(scene, 1.2, "committed GSD, 2D");
+}
+
+// Runs a python3-gsd script in `directory`; false when python3-gsd is not
+// installed (the tests that need it are then skipped).
+bool run_python_gsd(const fs::path& directory, const std::string& script) {
+  if (std::system("/usr/bin/python3 -c 'import gsd.hoomd, numpy' 2>/dev/null") != 0) return false;
+  const fs::path file = directory / "write.py";
+  std::ofstream(file) << script;
+  const std::string command = "cd '" + directory.string() + "' && /usr/bin/python3 write.py";
+  return std::system(command.c_str()) == 0;
+}
+
+class GsdWritten : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::path(::testing::TempDir()) / "pwcontact_gsd.XXXXXX").string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+    directory_ = pattern;
+  }
+  void TearDown() override { fs::remove_all(directory_); }
+  fs::path directory_;
+};
+
+// Frames of 300 particles, three types (two ellipsoids and a sphere), the
+// second frame with only the positions (the rest from frame 0 by the
+// schema), both ways of the gsd API (Snapshot in 2.7, Frame later).
+const char* three_frames = R"(
+import gsd.hoomd, numpy as np
+Frame = getattr(gsd.hoomd, 'Frame', None) or gsd.hoomd.Snapshot
+rng = np.random.default_rng(11)
+N = 300
+f = Frame()
+f.particles.N = N
+f.particles.types = ['needle', 'disc', 'ball']
+f.particles.typeid = rng.integers(0, 3, N).astype(np.uint32)
+f.particles.position = rng.uniform(-4, 4, (N, 3)).astype(np.float32)
+q = rng.normal(size=(N, 4)); q /= np.linalg.norm(q, axis=1)[:, None]
+f.particles.orientation = q.astype(np.float32)
+f.particles.type_shapes = [{'type': 'Ellipsoid', 'a': 0.9, 'b': 0.2, 'c': 0.2},
+                           {'type': 'Ellipsoid', 'a': 0.6, 'b': 0.6, 'c': 0.15},
+                           {'type': 'Sphere', 'diameter': 0.8}]
+f.configuration.box = [9, 9, 9, 0.4, 0.0, -0.3]
+np.savetxt('frame0.txt', np.hstack([f.particles.position, f.particles.orientation, f.particles.typeid[:, None]]))
+with gsd.hoomd.open('scene.gsd', 'wb') as out:
+    out.append(f)
+    g = Frame()
+    g.particles.N = N
+    g.particles.position = (f.particles.position * 0.97).astype(np.float32)
+    g.configuration.box = f.configuration.box
+    out.append(g)
+    out.append(g)
+)";
+
+TEST_F(GsdWritten, FramesWrittenByPythonGsdAreReadWithTheSchemasDefaults) {
+  if (!run_python_gsd(directory_, three_frames)) GTEST_SKIP() << "python3-gsd is not installed";
+  const std::string path = (directory_ / "scene.gsd").string();
+  const Scene first = pwcontact::read_gsd(path, 0);
+  const Scene last = pwcontact::read_gsd(path);
+  EXPECT_EQ(first.frames, 3u);
+  EXPECT_EQ(last.frame, 2u);
+  // Frame 0 against the numbers the writer was given.
+  std::ifstream table(directory_ / "frame0.txt");
+  const double axes[3][3] = {{0.9, 0.2, 0.2}, {0.6, 0.6, 0.15}, {0.4, 0.4, 0.4}};
+  for (std::size_t i = 0; i < 300; ++i) {
+    double v[8];
+    for (double& x : v) table >> x;
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(first.particles.centre(k)[i], double(float(v[k]))) << i;
+    EXPECT_EQ(first.type_id[i], std::uint32_t(v[7])) << i;
+    const auto q = pwcontact::quadratic_form_from_quaternion(
+        {axes[first.type_id[i]][0], axes[first.type_id[i]][1], axes[first.type_id[i]][2]},
+        {double(float(v[3])), double(float(v[4])), double(float(v[5])), double(float(v[6]))});
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(first.particles.q(k)[i], q[k], 1e-12) << i;
+    // The last frame: moved centres, frame 0's types and orientations.
+    EXPECT_EQ(last.type_id[i], first.type_id[i]);
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(last.particles.q(k)[i], first.particles.q(k)[i]);
+    EXPECT_EQ(last.particles.centre(0)[i], double(float(float(v[0]) * 0.97f)));
+  }
+  expect_screen_matches_brute_force(last, 1, "python3-gsd, last frame");
+}
+
+TEST_F(GsdWritten, MalformedGsdFilesAreRefusedWithWhatIsWrong) {
+  if (!run_python_gsd(directory_, three_frames)) GTEST_SKIP() << "python3-gsd is not installed";
+  const std::string path = (directory_ / "scene.gsd").string();
+  // Truncated: the chunks of the later frames beyond the end.
+  const auto size = fs::file_size(path);
+  fs::copy_file(path, directory_ / "cut.gsd");
+  fs::resize_file(directory_ / "cut.gsd", size / 2);
+  EXPECT_NE(message_of([&] { pwcontact::read_gsd((directory_ / "cut.gsd").string(), 0); }).find("truncated"),
+            std::string::npos);
+  EXPECT_NE(message_of([&] { pwcontact::read_gsd(path, 3); }).find("frame 3 is not in the file (it has 3 frames)"),
+            std::string::npos);
+  std::ofstream(directory_ / "text.gsd") << "this is not a GSD file, but it is long enough to have a header ..."
+                                         << std::string(300, '.');
+  EXPECT_NE(message_of([&] { pwcontact::read_gsd((directory_ / "text.gsd").string()); }).find("not a GSD file"),
+            std::string::npos);
+  // Shapes, types and orientations that cannot be ellipsoids.
+  const char* bad = R"(
+import gsd.hoomd, numpy as np
+Frame = getattr(gsd.hoomd, 'Frame', None) or gsd.hoomd.Snapshot
+def write(name, shapes, typeid=(0, 0), orientation=((1, 0, 0, 0), (1, 0, 0, 0))):
+    f = Frame()
+    f.particles.N = 2
+    f.particles.types = [chr(65 + k) for k in range(len(shapes))]
+    f.particles.typeid = np.array(typeid, dtype=np.uint32)
+    f.particles.position = np.array([[0, 0, 0], [1, 1, 1]], dtype=np.float32)
+    f.particles.orientation = np.array(orientation, dtype=np.float32)
+    f.particles.type_shapes = shapes
+    f.configuration.box = [10, 10, 10, 0, 0, 0]
+    with gsd.hoomd.open(name, 'wb') as out:
+        out.append(f)
+write('polygon.gsd', [{'type': 'Polygon', 'rounding_radius': 0, 'vertices': [[0, 0], [1, 0], [0, 1]]}])
+write('flat.gsd', [{'type': 'Ellipsoid', 'a': 1, 'b': 0, 'c': 1}])
+write('typeid.gsd', [{'type': 'Sphere', 'diameter': 1}], typeid=(0, 4))
+write('zero_q.gsd', [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5, 'c': 0.5}], orientation=((1, 0, 0, 0), (0, 0, 0, 0)))
+)";
+  ASSERT_TRUE(run_python_gsd(directory_, bad));
+  auto message = [&](const char* file) {
+    return message_of([&] { pwcontact::read_gsd((directory_ / file).string()); });
+  };
+  EXPECT_NE(message("polygon.gsd").find("type 0 ('A'): its shape is 'Polygon', not an ellipsoid"), std::string::npos)
+      << message("polygon.gsd");
+  EXPECT_NE(message("flat.gsd").find("b = 0"), std::string::npos) << message("flat.gsd");
+  EXPECT_NE(message("typeid.gsd").find("particle 1 has typeid 4, but there are 1 types"), std::string::npos)
+      << message("typeid.gsd");
+  EXPECT_NE(message("zero_q.gsd").find("frame 0: particle 1"), std::string::npos) << message("zero_q.gsd");
+  EXPECT_NE(message("zero_q.gsd").find("is zero"), std::string::npos) << message("zero_q.gsd");
+}
+
+// ---------------------------------------------------------------------------
+// LAMMPS
+
+TEST(SceneFiles, ALammpsDataFileOfEllipsoidsInATriclinicBox) {
+  // tests/data/lammps_triclinic.in: region prism 0 8 0 7 0 6, tilts 1.2 -0.9
+  // 0.6 (lengths), 30 atoms of type 1 with shape (diameters) 1.2 0.8 0.6 and
+  // 20 of type 2 with 0.9 0.9 0.9.
+  const Scene scene = pwcontact::read_lammps_data((data_dir / "lammps_triclinic.data").string());
+  ASSERT_EQ(scene.particles.size(), 50u);
+  EXPECT_EQ(scene.box.length, (std::array<double, 3>{8, 7, 6}));
+  EXPECT_DOUBLE_EQ(scene.box.tilt[0], 1.2 / 7);
+  EXPECT_DOUBLE_EQ(scene.box.tilt[1], -0.9 / 6);
+  EXPECT_DOUBLE_EQ(scene.box.tilt[2], 0.6 / 6);
+  for (std::size_t i = 0; i < 50; ++i) {
+    EXPECT_EQ(scene.id[i], i + 1);
+    if (scene.type_id[i] == 0)
+      expect_radii(scene, i, 0.6, 0.3, "shape 1.2 0.8 0.6 (diameters)");
+    else
+      expect_radii(scene, i, 0.45, 0.45, "shape 0.9 0.9 0.9");
+  }
+  expect_screen_matches_brute_force(scene, 1.3, "LAMMPS data, triclinic");
+}
+
+TEST(SceneFiles, ALammpsDumpsFramesWithTheBoundingBoxConvertedBack) {
+  const std::string path = (data_dir / "lammps_triclinic.dump").string();
+  const Scene data = pwcontact::read_lammps_data((data_dir / "lammps_triclinic.data").string());
+  // The shapes and orientations under the compute's names.
+  pwcontact::LammpsColumns columns;
+  for (int k = 0; k < 3; ++k) columns.shape[k] = "c_s[" + std::to_string(k + 1) + "]";
+  for (int k = 0; k < 4; ++k) columns.quaternion[k] = "c_q[" + std::to_string(k + 1) + "]";
+  const Scene first = pwcontact::read_lammps_dump(path, 0, columns);
+  const Scene last = pwcontact::read_lammps_dump(path, -1, columns);
+  EXPECT_EQ(first.frames, 3u);
+  EXPECT_EQ(last.frame, 2u);
+  // The bounding box of the dump back to the data file's box.
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(first.box.length[k], data.box.length[k], 1e-12);
+    EXPECT_NEAR(first.box.tilt[k], data.box.tilt[k], 1e-12);
+  }
+  for (std::size_t i = 0; i < 50; ++i) {
+    // Frame 0 is the data file's scene (positions with 6 digits).
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(first.particles.centre(k)[i], data.particles.centre(k)[i], 1e-4);
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(first.particles.q(k)[i], data.particles.q(k)[i], 1e-5);
+    // Each frame moved by (0.1, 0.2, 0.3), and LAMMPS wrapped the atoms that
+    // left the box: what remains of the displacement is a lattice vector
+    // (integer fractional coordinates under h^-1, h upper triangular).
+    double d[3];
+    for (int k = 0; k < 3; ++k)
+      d[k] = last.particles.centre(k)[i] - first.particles.centre(k)[i] - 0.2 * (k + 1);
+    const auto& b = last.box;
+    const double s2 = d[2] / b.length[2];
+    const double s1 = (d[1] - b.tilt[2] * b.length[2] * s2) / b.length[1];
+    const double s0 = (d[0] - b.tilt[0] * b.length[1] * s1 - b.tilt[1] * b.length[2] * s2) / b.length[0];
+    for (double s : {s0, s1, s2}) EXPECT_NEAR(s, std::round(s), 1e-4) << "atom " << i + 1;
+  }
+  expect_screen_matches_brute_force(last, 1.3, "LAMMPS dump, last frame");
+  // Without the column names: the usual ones are looked for, and named.
+  EXPECT_NE(message_of([&] { pwcontact::read_lammps_dump(path); }).find("no column shapex"), std::string::npos);
+}
+
+TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
+  std::string pattern = (fs::path(::testing::TempDir()) / "pwcontact_lammps.XXXXXX").string();
+  ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+  const fs::path dir = pattern;
+  std::ifstream in(data_dir / "lammps_triclinic.data");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  auto write_with = [&](const std::string& name, std::size_t line_index, const std::string& replacement) {
+    std::ofstream out(dir / name);
+    for (std::size_t k = 0; k < lines.size(); ++k) out << (k == line_index ? replacement : lines[k]) << "\n";
+    return (dir / name).string();
+  };
+  std::size_t atoms = 0, ellipsoids = 0;
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    if (lines[k].rfind("Atoms", 0) == 0) atoms = k;
+    if (lines[k].rfind("Ellipsoids", 0) == 0) ellipsoids = k;
+  }
+  auto message = [](const std::string& path) {
+    return message_of([&] { pwcontact::read_lammps_data(path); });
+  };
+  const std::string point = write_with("point.data", atoms + 2, "1 1 0 3.3 1 1 1 0 0 0");
+  EXPECT_NE(message(point).find(":" + std::to_string(atoms + 3) + ": atom 1 has ellipsoidflag 0"),
+            std::string::npos) << message(point);
+  const std::string short_line = write_with("short.data", ellipsoids + 2, "1 1.2 0.8 0.6 1 0 0");
+  EXPECT_NE(message(short_line).find(":" + std::to_string(ellipsoids + 3) + ": an Ellipsoids line has 8 fields"),
+            std::string::npos) << message(short_line);
+  const std::string zero = write_with("zero.data", ellipsoids + 2, "1 1.2 0 0.6 1 0 0 0");
+  EXPECT_NE(message(zero).find("atom 1: "), std::string::npos) << message(zero);
+  fs::remove_all(dir);
+}
+
+}  // namespace
