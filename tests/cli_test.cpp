@@ -41,6 +41,13 @@ struct Result {
 
 std::string quoted(const std::string& text) { return "'" + text + "'"; }
 
+std::vector<std::string> split_lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
 std::string number_text(double x) {
   char text[32];
   return std::string(
@@ -716,8 +723,11 @@ TEST_F(cli, HelpListsEveryStatusCodeAndEveryOption) {
                            "--max-aspect A", "--seed S", "--cutoff MU"})
     EXPECT_TRUE(contains(demo_help, text)) << text << "\n" << demo_help;
   const std::string screen_help = collapse_whitespace(run("screen --help").out);
-  for (const char* text : {"--box LX LY LZ", "--cutoff MU", "--format q|axes", "--with-mu2",
-                           "--threads N", "-o, --output OUT", "x y z a b c qw qx qy qz"})
+  for (const char* text : {"--box LX LY LZ [XY XZ YZ]", "--cutoff MU",
+                           "--format q|axes|ellipse|gsd|lammps-data|lammps-dump", "--with-mu2",
+                           "--frame N", "--columns NAME=COLUMN,...", "--outputs pairs|counts|neighbors",
+                           "--threads N", "-o, --output OUT", "x y z a b c qw qx qy qz",
+                           "ellipse: x y a b theta", ".lammpstrj lammps-dump"})
     EXPECT_TRUE(contains(screen_help, text)) << text << "\n" << screen_help;
 }
 
@@ -760,6 +770,13 @@ INSTANTIATE_TEST_SUITE_P(
         "screen --cutoff 1e-200 a.txt", "screen --cutoff 1e200 a.txt",
         "contact --mode overlap --cutoff 1e-160 a.txt", "demo --cutoff 1e-300",
         "screen a.txt b.txt",
+        // Scene formats: what each takes
+        "screen --frame 1 a.txt", "screen --frame x b.gsd", "screen --columns x=c_x[1] a.txt",
+        "screen --columns foo=c_x[1] b.dump", "screen --columns x= b.dump", "screen --format gsd",
+        "screen --box 1 1 1 b.gsd", "screen --format ellipse --box 1 1 1 1 a.txt",
+        "screen --box 1 1 1 1 a.txt", "screen --box 10 10 10 0.5 0 a.txt",
+        "screen --box=1,1,1,1,1,1,1 a.txt", "screen --box 10 10 10 0 0 inf a.txt",
+        "screen --outputs all a.txt", "screen --outputs pairs,counts a.txt",
         // Bad values of the options of the answer and the arithmetic
         "contact --mode both", "contact --precision auto", "contact --precision",
         "contact --iterations automatic", "contact --iterations -1", "contact --accuracy best",
@@ -917,6 +934,162 @@ TEST_F(cli, ScreenReadsSemiAxesAndQuaternions) {
              "0 0 0  0.1 0.1 2  0.7071067811865476 0.7071067811865476 0 0\n"
              "0 0 2.4  0.5 0.5 0.5  1 0 0 0\n");
   EXPECT_EQ(run("screen --format axes turned.txt").out, "");
+}
+
+TEST_F(cli, ScreenWritesCountsAndNeighboursPerParticle) {
+  // The scene of the test above: pairs 0-1 (mu^2 0.5625), 0-2 (0.25), 1-2
+  // (1.5625), 1-3 (2.25) with cutoff 1.6.
+  write_file("spheres.txt",
+             "0.5 5 5  1 0 0 1 0 1\n2 5 5  1 0 0 1 0 1\n9.5 5 5  1 0 0 1 0 1\n"
+             "5 5 5  1 0 0 1 0 1\n20 20 20  1 0 0 1 0 1\n");
+  const std::string common = "screen --box 30 30 30 --cutoff 1.6 spheres.txt";
+  // (In a 30 box 0-2 are 9 apart: pairs 0-1 and 1-3 only; particle 4 alone.)
+  EXPECT_EQ(run(common).out, "0 1\n1 3\n");
+  EXPECT_EQ(run(common + " --outputs counts").out, "1\n2\n0\n1\n0\n");
+  EXPECT_EQ(run(common + " --outputs neighbors").out, "1\n0 3\n\n1\n\n");
+  const std::string periodic = "screen --box 10 10 10 --cutoff 1.6 --with-mu2 spheres.txt";
+  write_file("spheres.txt",
+             "0.5 5 5  1 0 0 1 0 1\n2 5 5  1 0 0 1 0 1\n9.5 5 5  1 0 0 1 0 1\n"
+             "5 5 5  1 0 0 1 0 1\n");
+  EXPECT_EQ(run(periodic + " --outputs counts").out, "2\n3\n2\n1\n");
+  EXPECT_EQ(run(periodic + " --outputs neighbors").out,
+            "1 0.5625 2 0.25\n0 0.5625 2 1.5625 3 2.25\n0 0.25 1 1.5625\n1 2.25\n");
+}
+
+TEST_F(cli, ScreenTakesTiltedBoxesInTheHoomdConvention) {
+  // Spheres of radius 0.4 at (1, -4.5, 0) and (6, 5, 0): with tilt xy 0.5
+  // the lattice vector (XY LY, LY, 0) = (5, 10, 0) brings the second to
+  // (1, -5, 0), 0.5 away (mu = 0.625); without the tilt they are far apart.
+  write_file("two.txt", "1 -4.5 0  0.16 0 0 0.16 0 0.16\n6 5 0  0.16 0 0 0.16 0 0.16\n");
+  // mu^2 = (0.5 / 0.8)^2, to the rounding of the image (fractional
+  // coordinates times the box: a few eps of the box length in r).
+  double mu2 = 0;
+  ASSERT_EQ(std::sscanf(run("screen --box 10 10 10 0.5 0 0 --with-mu2 two.txt").out.c_str(), "0 1 %lf", &mu2), 1);
+  EXPECT_NEAR(mu2, 0.390625, 1e-14);
+  EXPECT_EQ(run("screen --box=10,10,10,0.5,0,0 two.txt").out, "0 1\n");
+  EXPECT_EQ(run("screen --box 10 10 10 two.txt").out, "");
+  const Outcome thin = run("screen --box 10 10 10 3 0 0 --cutoff 12 two.txt");
+  EXPECT_EQ(thin.exit_status, 2);
+  EXPECT_TRUE(contains(thin.err, "too small")) << thin.err;
+}
+
+TEST_F(cli, ScreenReadsEllipsesInAPlaneWithTheirExactContactFunction) {
+  // Ellipses a = 2, b = 0.5 on the x axis, 3 apart: aligned with the line
+  // of centres mu = 3 / (2 + 2); the second turned by 90 degrees, mu =
+  // 3 / (2 + 0.5) (a principal axis of both along r: mu = d / (r1 + r2)).
+  write_file("ellipses.txt", "0 0 2 0.5 0\n3 0 2 0.5 0\n0 5 2 0.5 0\n3 5 2 0.5 1.5707963267948966\n");
+  const Outcome result = run("screen --format ellipse --cutoff 1.5 --with-mu2 ellipses.txt");
+  ASSERT_EQ(result.exit_status, 0) << result.err;
+  const auto lines = split_lines(result.out);
+  ASSERT_EQ(lines.size(), 2u) << result.out;
+  double mu2[2];
+  ASSERT_EQ(std::sscanf(lines[0].c_str(), "0 1 %lf", &mu2[0]), 1) << lines[0];
+  ASSERT_EQ(std::sscanf(lines[1].c_str(), "2 3 %lf", &mu2[1]), 1) << lines[1];
+  // (the turned ellipse's Q carries the rounding of cos(pi/2): a few eps)
+  EXPECT_NEAR(mu2[0], 0.5625, 4e-16);
+  EXPECT_NEAR(mu2[1], 1.44, 1e-15);
+  EXPECT_TRUE(contains(result.err, "4 ellipses")) << result.err;
+  // A two-dimensional periodic box: LX LY [XY]; the first pair across the
+  // tilted boundary as in the test above.
+  write_file("plane.txt", "1 -4.5 0.4 0.4 0\n6 5 0.4 0.4 0\n");
+  EXPECT_EQ(run("screen --format ellipse --box 10 10 0.5 plane.txt").out, "0 1\n");
+  EXPECT_EQ(run("screen --format ellipse --box 10 10 plane.txt").out, "");
+  const Outcome zero = run("screen --format ellipse plane.txt", "printf '0 0 1 0 0\\n' >> plane.txt &&");
+  EXPECT_EQ(zero.exit_status, 2);
+  EXPECT_TRUE(contains(zero.err, "ellipse 2 (line 3)")) << zero.err;
+}
+
+TEST_F(cli, ScreenReadsGsdAndLammpsFilesByTheirNames) {
+  const std::string data = PWCONTACT_TEST_DATA;
+  // The command line's pairs are the library's (which scene_files_test holds
+  // to the brute force) for each format, chosen from the name.
+  auto library_pairs = [](const pwcontact::Scene& scene, double cutoff) {
+    pwcontact::ScreenedPairs pairs;
+    pwcontact::ScreenOptions options;
+    options.cutoff = cutoff;
+    pwcontact::screen_pairs(scene.particles, scene.box, options, pairs);
+    std::string text;
+    for (std::size_t k = 0; k < pairs.size(); ++k)
+      text += std::to_string(pairs.i[k]) + " " + std::to_string(pairs.j[k]) + "\n";
+    return text;
+  };
+  const std::string gsd = data + "/hoomd_triclinic.gsd";
+  const Outcome from_gsd = run("screen --cutoff 1.2 " + quoted(gsd));
+  ASSERT_EQ(from_gsd.exit_status, 0) << from_gsd.err;
+  EXPECT_EQ(from_gsd.out, library_pairs(pwcontact::read_gsd(gsd), 1.2));
+  EXPECT_GT(from_gsd.out.size(), 50u);
+  EXPECT_TRUE(contains(from_gsd.err, "(gsd, frame 0 of 1)")) << from_gsd.err;
+  EXPECT_TRUE(contains(from_gsd.err, "tilts xy 0.3 xz -0.2 yz 0.1")) << from_gsd.err;
+  const std::string ellipses = data + "/hoomd_ellipses_2d.gsd";
+  const Outcome from_2d = run("screen " + quoted(ellipses));
+  ASSERT_EQ(from_2d.exit_status, 0) << from_2d.err;
+  EXPECT_EQ(from_2d.out, library_pairs(pwcontact::read_gsd(ellipses), 1));
+  EXPECT_TRUE(contains(from_2d.err, "two-dimensional periodic box 9 x 8, tilt xy 0.25")) << from_2d.err;
+  const std::string lammps = data + "/lammps_triclinic.data";
+  const Outcome from_data = run("screen --cutoff 1.3 " + quoted(lammps));
+  ASSERT_EQ(from_data.exit_status, 0) << from_data.err;
+  EXPECT_EQ(from_data.out, library_pairs(pwcontact::read_lammps_data(lammps), 1.3));
+  // A dump's frame, with a compute's columns mapped.
+  const std::string dump = data + "/lammps_triclinic.dump";
+  pwcontact::LammpsColumns columns;
+  for (int k = 0; k < 3; ++k) columns.shape[k] = "c_s[" + std::to_string(k + 1) + "]";
+  for (int k = 0; k < 4; ++k) columns.quaternion[k] = "c_q[" + std::to_string(k + 1) + "]";
+  const std::string mapped =
+      " --columns shapex=c_s[1],shapey=c_s[2],shapez=c_s[3],quatw=c_q[1],quati=c_q[2],"
+      "quatj=c_q[3],quatk=c_q[4] ";
+  const Outcome from_dump = run("screen --frame 1 --cutoff 1.3" + mapped + quoted(dump));
+  ASSERT_EQ(from_dump.exit_status, 0) << from_dump.err;
+  EXPECT_EQ(from_dump.out, library_pairs(pwcontact::read_lammps_dump(dump, 1, columns), 1.3));
+  EXPECT_TRUE(contains(from_dump.err, "(lammps-dump, frame 1 of 3)")) << from_dump.err;
+  // The format named whatever the file's name.
+  fs::copy_file(gsd, path("scene.bin"));
+  EXPECT_EQ(run("screen --format gsd --cutoff 1.2 scene.bin").out, from_gsd.out);
+}
+
+TEST_F(cli, MalformedSimulationFilesStopTheRunNamingWhatIsWrong) {
+  const std::string data = PWCONTACT_TEST_DATA;
+  // A truncated GSD file: exit 2, nothing written.
+  std::ifstream in(data + "/hoomd_triclinic.gsd", std::ios::binary);
+  const std::string bytes(std::istreambuf_iterator<char>(in), {});
+  write_file("cut.gsd", bytes.substr(0, bytes.size() * 2 / 3));
+  const Outcome cut = run("screen -o pairs.txt cut.gsd");
+  EXPECT_EQ(cut.exit_status, 2);
+  EXPECT_TRUE(contains(cut.err, "cut.gsd: truncated")) << cut.err;
+  EXPECT_FALSE(fs::exists(path("pairs.txt")));
+  // A dump without the shapes under their usual names.
+  const Outcome unnamed = run("screen -o pairs.txt " + quoted(data + "/lammps_triclinic.dump"));
+  EXPECT_EQ(unnamed.exit_status, 2);
+  EXPECT_TRUE(contains(unnamed.err, "no column shapex")) << unnamed.err;
+  EXPECT_FALSE(fs::exists(path("pairs.txt")));
+  // A frame the file does not have.
+  const Outcome frame = run("screen --frame 5 " + quoted(data + "/hoomd_triclinic.gsd"));
+  EXPECT_EQ(frame.exit_status, 2);
+  EXPECT_TRUE(contains(frame.err, "frame 5 is not in the file (it has 1 frames)")) << frame.err;
+  // A data file with a zero diameter, named by its line.
+  std::ifstream data_in(data + "/lammps_triclinic.data");
+  std::string text, line;
+  bool done = false;
+  bool in_ellipsoids = false;
+  int number = 0, changed = 0;
+  while (std::getline(data_in, line)) {
+    ++number;
+    if (line.rfind("Ellipsoids", 0) == 0) in_ellipsoids = true;
+    if (in_ellipsoids && !done && !line.empty() && std::isdigit(static_cast<unsigned char>(line[0]))) {
+      std::istringstream words(line);
+      std::string id;
+      words >> id;
+      line = id + " 0 0.8 0.6 1 0 0 0";
+      changed = number;
+      done = true;
+    }
+    text += line + "\n";
+  }
+  write_file("zero.data", text);
+  const Outcome zero = run("screen zero.data");
+  EXPECT_EQ(zero.exit_status, 2);
+  EXPECT_TRUE(contains(zero.err, "zero.data:" + std::to_string(changed))) << zero.err;
+  // A file that is not there: an input error.
+  EXPECT_EQ(run("screen missing.gsd").exit_status, 1);
 }
 
 TEST_F(cli, ScreenStopsAtABadLineWithItsNumberAndWritesNothing) {

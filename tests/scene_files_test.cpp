@@ -212,21 +212,27 @@ TEST_F(GsdWritten, MalformedGsdFilesAreRefusedWithWhatIsWrong) {
   const char* bad = R"(
 import gsd.hoomd, numpy as np
 Frame = getattr(gsd.hoomd, 'Frame', None) or gsd.hoomd.Snapshot
-def write(name, shapes, typeid=(0, 0), orientation=((1, 0, 0, 0), (1, 0, 0, 0))):
+def write(name, shapes, typeid=(0, 0), orientation=((1, 0, 0, 0), (1, 0, 0, 0)), dimensions=3,
+          position=((0, 0, 0), (1, 1, 1))):
     f = Frame()
+    f.configuration.dimensions = dimensions
     f.particles.N = 2
     f.particles.types = [chr(65 + k) for k in range(len(shapes))]
     f.particles.typeid = np.array(typeid, dtype=np.uint32)
-    f.particles.position = np.array([[0, 0, 0], [1, 1, 1]], dtype=np.float32)
+    f.particles.position = np.array(position, dtype=np.float32)
     f.particles.orientation = np.array(orientation, dtype=np.float32)
     f.particles.type_shapes = shapes
-    f.configuration.box = [10, 10, 10, 0, 0, 0]
+    f.configuration.box = [10, 10, 10 if dimensions == 3 else 0, 0, 0, 0]
     with gsd.hoomd.open(name, 'wb') as out:
         out.append(f)
 write('polygon.gsd', [{'type': 'Polygon', 'rounding_radius': 0, 'vertices': [[0, 0], [1, 0], [0, 1]]}])
 write('flat.gsd', [{'type': 'Ellipsoid', 'a': 1, 'b': 0, 'c': 1}])
 write('typeid.gsd', [{'type': 'Sphere', 'diameter': 1}], typeid=(0, 4))
 write('zero_q.gsd', [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5, 'c': 0.5}], orientation=((1, 0, 0, 0), (0, 0, 0, 0)))
+ellipse = [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5}]
+write('tilted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0)),
+      orientation=((1, 0, 0, 0), (0.8, 0.6, 0, 0)))
+write('lifted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0.5)))
 )";
   ASSERT_TRUE(run_python_gsd(directory_, bad));
   auto message = [&](const char* file) {
@@ -238,6 +244,13 @@ write('zero_q.gsd', [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5, 'c': 0.5}], orienta
   EXPECT_NE(message("typeid.gsd").find("particle 1 has typeid 4, but there are 1 types"), std::string::npos)
       << message("typeid.gsd");
   EXPECT_NE(message("zero_q.gsd").find("frame 0: particle 1"), std::string::npos) << message("zero_q.gsd");
+  // In two dimensions: rotations about z only, centres in the plane.
+  EXPECT_NE(message("tilted_2d.gsd").find("particle 1: a two-dimensional scene, but its orientation"),
+            std::string::npos)
+      << message("tilted_2d.gsd");
+  EXPECT_NE(message("lifted_2d.gsd").find("particle 1: a two-dimensional scene, but its z is 0.5"),
+            std::string::npos)
+      << message("lifted_2d.gsd");
   EXPECT_NE(message("zero_q.gsd").find("is zero"), std::string::npos) << message("zero_q.gsd");
 }
 

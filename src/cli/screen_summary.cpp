@@ -25,8 +25,14 @@ std::string per_second(std::size_t count, double seconds) {
 
 std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff) {
   char text[2048];
-  char where[128];
-  if (box.periodic)
+  char where[192];
+  if (box.periodic && box.two_dimensional)
+    std::snprintf(where, sizeof where, "two-dimensional periodic box %g x %g, tilt xy %g",
+                  box.length[0], box.length[1], box.tilt[0]);
+  else if (box.periodic && !box.orthorhombic())
+    std::snprintf(where, sizeof where, "periodic box %g x %g x %g, tilts xy %g xz %g yz %g",
+                  box.length[0], box.length[1], box.length[2], box.tilt[0], box.tilt[1], box.tilt[2]);
+  else if (box.periodic)
     std::snprintf(where, sizeof where, "periodic box %g x %g x %g", box.length[0], box.length[1],
                   box.length[2]);
   else

@@ -319,10 +319,19 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
                                                                 orientation[4 * i + 2], orientation[4 * i + 3]};
     try {
       if (dimensions == 2) {
-        // The angle of the body's x axis in the plane, from the rotation.
+        // The angle of the body's x axis in the plane, from the rotation,
+        // which must be about z (x, y = 0 up to the file's float32
+        // rounding), as must the centre lie in the plane.
         const double w = q[0], x = q[1], y = q[2], z = q[3], norm = w * w + x * x + y * y + z * z;
         if (!(norm > 0) || !std::isfinite(norm))
           throw std::invalid_argument("its orientation is zero or not finite");
+        if (x * x + y * y > 1e-12 * norm)
+          throw std::invalid_argument("a two-dimensional scene, but its orientation (" + std::to_string(w) +
+                                      ", " + std::to_string(x) + ", " + std::to_string(y) + ", " +
+                                      std::to_string(z) + ") is not a rotation about z");
+        if (position[3 * i + 2] != 0)
+          throw std::invalid_argument("a two-dimensional scene, but its z is " +
+                                      std::to_string(position[3 * i + 2]) + ", not 0");
         const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
         scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0], shape.a[1], theta);
       } else {
@@ -330,7 +339,7 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
                                  shape.a, q);
       }
     } catch (const std::invalid_argument& e) {
-      file.malformed(where + ": particle " + std::to_string(i) + ": " + e.what());
+      file.malformed(where + ": particle " + std::to_string(i) + ": " + detail::store_message(e, i));
     }
   });
   errors.rethrow_if_failed();

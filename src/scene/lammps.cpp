@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "pwcontact/scene_files.hpp"
+#include "scene/shape_json.hpp"
 
 namespace pwcontact {
 namespace {
@@ -88,9 +89,12 @@ struct Atom {
   std::array<double, 3> position;
   std::array<double, 3> diameters;
   std::array<double, 4> quaternion;
+  std::size_t line;  // where its shape is given
 };
 
-Scene store(std::vector<Atom>& atoms, const Box& box, std::uint32_t types, const std::string& where) {
+// `where` follows the line number in messages (" (frame 3)", or empty).
+Scene store(std::vector<Atom>& atoms, const Box& box, std::uint32_t types, const std::string& path,
+            const std::string& where) {
   Scene scene;
   scene.box = box;
   for (std::uint32_t t = 1; t <= types; ++t) scene.type_names.push_back(std::to_string(t));
@@ -101,7 +105,8 @@ Scene store(std::vector<Atom>& atoms, const Box& box, std::uint32_t types, const
       scene.particles.set_axes(i, a.position, {a.diameters[0] / 2, a.diameters[1] / 2, a.diameters[2] / 2},
                                a.quaternion);
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(where + ": atom " + std::to_string(a.id) + ": " + e.what());
+      throw std::invalid_argument(path + ":" + std::to_string(a.line) + where + ": atom " +
+                                  std::to_string(a.id) + ": " + detail::store_message(e, i));
     }
     scene.id.push_back(a.id);
     scene.type_id.push_back(a.type >= 1 ? a.type - 1 : 0);
@@ -186,6 +191,7 @@ Scene read_lammps_data(const std::string& path) {
         Atom& a = atoms[found->second];
         for (int k = 0; k < 3; ++k) a.diameters[k] = number(w[std::size_t(1 + k)], lines, "a shape");
         for (int k = 0; k < 4; ++k) a.quaternion[k] = number(w[std::size_t(4 + k)], lines, "a quaternion component");
+        a.line = lines.number();
         ++shaped;
       }
     }
@@ -198,7 +204,7 @@ Scene read_lammps_data(const std::string& path) {
     throw std::invalid_argument(path + ": " + std::to_string(atoms.size()) + " atoms but " +
                                 std::to_string(shaped) + " Ellipsoids lines (header: " +
                                 std::to_string(ellipsoids_count) + "): every atom needs a shape");
-  return store(atoms, box, types, path);
+  return store(atoms, box, types, path, "");
 }
 
 Scene read_lammps_dump(const std::string& path, std::int64_t frame, const LammpsColumns& columns) {
@@ -328,9 +334,10 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
       a.diameters[k] = number(w[shape[k]], lines, "a shape");
     }
     for (int k = 0; k < 4; ++k) a.quaternion[k] = number(w[quaternion[k]], lines, "a quaternion component");
+    a.line = lines.number();
     atoms.push_back(a);
   }
-  Scene scene = store(atoms, box, types, path + " frame " + std::to_string(f));
+  Scene scene = store(atoms, box, types, path, " (frame " + std::to_string(f) + ")");
   scene.frame = f;
   scene.frames = std::uint64_t(count);
   return scene;

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <exception>
 #include <string>
 
 namespace pwcontact::detail {
@@ -17,5 +18,14 @@ struct ShapeAxes {
 // Throws std::invalid_argument naming what is wrong: not JSON, not an
 // ellipsoid or a sphere, a missing or non-positive semi-axis.
 ShapeAxes parse_shape(const std::string& json, bool two_dimensional);
+
+// The ParticleStore's message about particle i without its "particle i: ",
+// for a reader that names the particle its own way (atom id, line, frame).
+inline std::string store_message(const std::exception& e, std::size_t i) {
+  std::string what = e.what();
+  const std::string prefix = "particle " + std::to_string(i) + ": ";
+  if (what.rfind(prefix, 0) == 0) what.erase(0, prefix.size());
+  return what;
+}
 
 }  // namespace pwcontact::detail

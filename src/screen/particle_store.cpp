@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <initializer_list>
 #include <limits>
 #include <stdexcept>
@@ -103,7 +104,14 @@ void ParticleStore::add(const std::array<double, 3>& centre, const std::array<do
 
 namespace {
 
-std::string particle_name(std::size_t i) { return "ParticleStore: particle " + std::to_string(i); }
+std::string particle_name(std::size_t i) { return "particle " + std::to_string(i); }
+
+// %g: "0", "1e-300", "inf" (std::to_string writes 0.000000 for 1e-300).
+std::string number_text(double x) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", x);
+  return text;
+}
 
 void check_centre(std::size_t i, const std::array<double, 3>& centre) {
   for (double c : centre)
@@ -132,7 +140,9 @@ void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
   check_centre(i, centre);
   for (double a : semi_axes)
     if (!(a > 0) || !std::isfinite(a))
-      throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite");
+      throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite, got (" +
+                                  number_text(semi_axes[0]) + ", " + number_text(semi_axes[1]) +
+                                  ", " + number_text(semi_axes[2]) + ")");
   // Equal semi-axes: a sphere whatever the rotation, stored as exactly a^2 I
   // (the rotated form would carry rounding off the diagonal), so that pairs
   // of spheres are recognised and decided in closed form.
@@ -169,7 +179,8 @@ void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, dou
                                 double theta) {
   check_centre(i, {x, y, 0});
   if (!(a > 0) || !std::isfinite(a) || !(b > 0) || !std::isfinite(b))
-    throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite");
+    throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite, got (" +
+                                number_text(a) + ", " + number_text(b) + ")");
   if (!std::isfinite(theta)) throw std::invalid_argument(particle_name(i) + ": the angle is not finite");
   const double c = std::cos(theta), s = std::sin(theta), a2 = a * a, b2 = b * b;
   const double smallest = std::min(a, b);
