@@ -777,6 +777,7 @@ INSTANTIATE_TEST_SUITE_P(
         "screen --box 1 1 1 1 a.txt", "screen --box 10 10 10 0.5 0 a.txt",
         "screen --box=1,1,1,1,1,1,1 a.txt", "screen --box 10 10 10 0 0 inf a.txt",
         "screen --outputs all a.txt", "screen --outputs pairs,counts a.txt",
+        "screen --write-gsd o.gsd a.txt", "screen --write-gsd= b.gsd",
         // Bad values of the options of the answer and the arithmetic
         "contact --mode both", "contact --precision auto", "contact --precision",
         "contact --iterations automatic", "contact --iterations -1", "contact --accuracy best",
@@ -1044,6 +1045,37 @@ TEST_F(cli, ScreenReadsGsdAndLammpsFilesByTheirNames) {
   // The format named whatever the file's name.
   fs::copy_file(gsd, path("scene.bin"));
   EXPECT_EQ(run("screen --format gsd --cutoff 1.2 scene.bin").out, from_gsd.out);
+}
+
+TEST_F(cli, ScreenWritesTheCountsBackAsAGsdFrame) {
+  const std::string gsd = std::string(PWCONTACT_TEST_DATA) + "/hoomd_triclinic.gsd";
+  const Outcome result = run("screen --cutoff 1.2 --outputs counts --write-gsd out.gsd " + quoted(gsd));
+  ASSERT_EQ(result.exit_status, 0) << result.err;
+  EXPECT_TRUE(contains(result.err, "log/particles/overlaps to out.gsd")) << result.err;
+  // The frame as it was: the same scene read back.
+  const pwcontact::Scene original = pwcontact::read_gsd(gsd), written = pwcontact::read_gsd(path("out.gsd"));
+  ASSERT_EQ(written.particles.size(), original.particles.size());
+  EXPECT_EQ(written.box.tilt, original.box.tilt);
+  for (std::size_t i = 0; i < original.particles.size(); ++i)
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(written.particles.q(k)[i], original.particles.q(k)[i]) << i;
+  // The counts, as python3-gsd (an independent reader) sees them.
+  write_file("log.py",
+             "import gsd.hoomd\n"
+             "with gsd.hoomd.open('out.gsd', 'rb') as t:\n"
+             "    print('\\n'.join(str(x) for x in t.read_frame(0).log['particles/overlaps']))\n");
+  if (std::system("/usr/bin/python3 -c 'import gsd.hoomd' 2>/dev/null") == 0) {
+    const std::string command = "cd " + quoted(path(".")) + " && /usr/bin/python3 log.py > log.txt";
+    ASSERT_EQ(std::system(command.c_str()), 0);
+    EXPECT_EQ(read_file("log.txt"), result.out);
+  }
+  // A failed run writes neither output.
+  std::ifstream in(gsd, std::ios::binary);
+  const std::string bytes(std::istreambuf_iterator<char>(in), {});
+  write_file("cut.gsd", bytes.substr(0, bytes.size() / 2));
+  const Outcome cut = run("screen -o counts.txt --outputs counts --write-gsd cut_out.gsd cut.gsd");
+  EXPECT_EQ(cut.exit_status, 2);
+  EXPECT_FALSE(fs::exists(path("cut_out.gsd")));
+  EXPECT_FALSE(fs::exists(path("counts.txt")));
 }
 
 TEST_F(cli, MalformedSimulationFilesStopTheRunNamingWhatIsWrong) {

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -191,6 +192,107 @@ TEST_F(GsdWritten, FramesWrittenByPythonGsdAreReadWithTheSchemasDefaults) {
     EXPECT_EQ(last.particles.centre(0)[i], double(float(float(v[0]) * 0.97f)));
   }
   expect_screen_matches_brute_force(last, 1, "python3-gsd, last frame");
+}
+
+TEST_F(GsdWritten, FilesOfTheWriterAreReadByPythonGsd) {
+  // Two frames written here, read back by python3-gsd (an independent
+  // reader of the format), which prints what it finds.
+  {
+    std::ofstream out(directory_ / "written.gsd", std::ios::binary);
+    pwcontact::GsdWriter writer(out);
+    writer.write("configuration/box", std::vector<float>{5, 6, 7, 0.1f, -0.2f, 0.3f}, 6);
+    writer.write("particles/N", std::vector<std::uint32_t>{3}, 1);
+    writer.write("particles/types", std::vector<std::string>{"A", "long_name"});
+    writer.write("particles/typeid", std::vector<std::uint32_t>{0, 1, 1}, 3);
+    writer.write("particles/position", std::vector<float>{0, 0, 0, 1, 2, 3, -1, -2, -2.5f}, 3);
+    writer.write("particles/type_shapes",
+                 std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})",
+                                          R"({"type": "Ellipsoid", "a": 1, "b": 0.5, "c": 0.25})"});
+    writer.write("log/particles/overlaps", std::vector<std::uint32_t>{7, 8, 9}, 3);
+    writer.end_frame();
+    writer.write("particles/N", std::vector<std::uint32_t>{3}, 1);
+    writer.write("particles/position", std::vector<double>{0.5, 0, 0, 1, 2, 3, -1, -2, -2.5}, 3);
+    writer.end_frame();
+    writer.finish();
+  }
+  // Read by this reader: the second frame takes the rest from frame 0.
+  const Scene second = pwcontact::read_gsd((directory_ / "written.gsd").string());
+  EXPECT_EQ(second.frames, 2u);
+  EXPECT_EQ(second.particles.centre(0)[0], 0.5);
+  EXPECT_EQ(second.type_names, (std::vector<std::string>{"A", "long_name"}));
+  expect_radii(second, 2, 1, 0.25, "Ellipsoid a 1 b 0.5 c 0.25");
+  const char* check = R"(
+import gsd.hoomd
+with gsd.hoomd.open('written.gsd', 'rb') as t:
+    with open('seen.txt', 'w') as out:
+        out.write('%d\n' % len(t))
+        f = t[0]
+        out.write(' '.join('%g' % x for x in f.configuration.box) + '\n')
+        out.write(' '.join(f.particles.types) + '\n')
+        out.write(' '.join(str(x) for x in f.particles.typeid) + '\n')
+        out.write(' '.join('%g' % x for x in f.particles.position.flatten()) + '\n')
+        out.write(str(f.particles.type_shapes[1]['c']) + '\n')
+        out.write(' '.join(str(x) for x in t.read_frame(0).log['particles/overlaps']) + '\n')
+        out.write(' '.join('%g' % x for x in t[1].particles.position[0]) + '\n')
+)";
+  if (!run_python_gsd(directory_, check)) GTEST_SKIP() << "python3-gsd is not installed";
+  std::ifstream seen(directory_ / "seen.txt");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(seen, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 8u);
+  EXPECT_EQ(lines[0], "2");
+  EXPECT_EQ(lines[1], "5 6 7 0.1 -0.2 0.3");
+  EXPECT_EQ(lines[2], "A long_name");
+  EXPECT_EQ(lines[3], "0 1 1");
+  EXPECT_EQ(lines[4], "0 0 0 1 2 3 -1 -2 -2.5");
+  EXPECT_EQ(lines[5], "0.25");
+  EXPECT_EQ(lines[6], "7 8 9");
+  EXPECT_EQ(lines[7], "0.5 0 0");
+}
+
+TEST_F(GsdWritten, AFrameIsWrittenBackWithPerParticleValuesForOvito) {
+  if (!run_python_gsd(directory_, three_frames)) GTEST_SKIP() << "python3-gsd is not installed";
+  const std::string path = (directory_ / "scene.gsd").string();
+  // Frame 1 holds only N, the positions and the box: the types, shapes and
+  // orientations come from frame 0, and so into the file written.
+  std::vector<std::uint32_t> values(300);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = std::uint32_t(i * 7 % 13);
+  {
+    std::ofstream out(directory_ / "counts.gsd", std::ios::binary);
+    pwcontact::write_gsd_frame_with_values(path, 1, "overlaps", values, out);
+  }
+  const char* check = R"(
+import gsd.hoomd, numpy as np
+with gsd.hoomd.open('scene.gsd', 'rb') as t:
+    source = t[1]
+with gsd.hoomd.open('counts.gsd', 'rb') as t:
+    f = t[0]
+    log = t.read_frame(0).log['particles/overlaps']
+    frames = len(t)
+ok = (frames == 1 and np.array_equal(f.particles.position, source.particles.position)
+      and np.array_equal(f.particles.orientation, source.particles.orientation)
+      and np.array_equal(f.particles.typeid, source.particles.typeid)
+      and f.particles.types == source.particles.types
+      and f.particles.type_shapes == source.particles.type_shapes
+      and np.allclose(f.configuration.box, source.configuration.box))
+with open('seen.txt', 'w') as out:
+    out.write('%s\n' % ok)
+    out.write(' '.join(str(x) for x in log) + '\n')
+)";
+  ASSERT_TRUE(run_python_gsd(directory_, check));
+  std::ifstream seen(directory_ / "seen.txt");
+  std::string same, logged;
+  std::getline(seen, same);
+  std::getline(seen, logged);
+  EXPECT_EQ(same, "True");
+  std::string expected;
+  for (std::size_t i = 0; i < values.size(); ++i) expected += (i ? " " : "") + std::to_string(values[i]);
+  EXPECT_EQ(logged, expected);
+  // Values that are not one per particle: refused.
+  std::ostringstream out;
+  EXPECT_NE(message_of([&] { pwcontact::write_gsd_frame_with_values(path, 1, "overlaps", {1, 2}, out); })
+                .find("2 values for the 300 particles"),
+            std::string::npos);
 }
 
 TEST_F(GsdWritten, MalformedGsdFilesAreRefusedWithWhatIsWrong) {

@@ -15,7 +15,9 @@
 #pragma once
 
 #include <cstdint>
+#include <iosfwd>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "pwcontact/screen.hpp"
@@ -57,5 +59,60 @@ struct LammpsColumns {
 // custom) with positions, shapes and quaternions per atom.
 Scene read_lammps_dump(const std::string& path, std::int64_t frame = -1,
                        const LammpsColumns& columns = {});
+
+// A GSD file (file layer 2.0, the hoomd schema) written frame by frame to a
+// seekable stream: the chunks of a frame, end_frame(), ..., finish() (which
+// writes the index and the names, and the header last). For scenes made in
+// C++ and for results beside a scene. Throws std::invalid_argument for a
+// chunk that does not fit its rows, std::runtime_error when the stream fails.
+class GsdWriter {
+ public:
+  explicit GsdWriter(std::ostream& out);
+  GsdWriter(const GsdWriter&) = delete;
+  GsdWriter& operator=(const GsdWriter&) = delete;
+
+  // `values` as `rows` rows of values.size() / rows columns.
+  void write(const std::string& name, const std::vector<float>& values, std::uint64_t rows);
+  void write(const std::string& name, const std::vector<double>& values, std::uint64_t rows);
+  void write(const std::string& name, const std::vector<std::uint32_t>& values, std::uint64_t rows);
+  void write(const std::string& name, const std::vector<std::uint64_t>& values, std::uint64_t rows);
+  // One row per string, each zero-terminated in a row as long as the
+  // longest (particles/types, particles/type_shapes).
+  void write(const std::string& name, const std::vector<std::string>& rows);
+  // Any chunk as the file layer stores it: `rows` x `columns` elements of
+  // the specification's type code `type` (1 uint8 .. 10 float64, 11 char).
+  void write_chunk(const std::string& name, std::uint8_t type, std::uint64_t rows,
+                   std::uint32_t columns, const void* data);
+  void end_frame();
+  void finish();
+
+ private:
+  void write_raw(const std::string& name, std::uint8_t type, std::uint64_t rows,
+                 std::uint64_t count, const void* data);
+  struct Entry {
+    std::uint64_t frame, rows;
+    std::int64_t location;
+    std::uint32_t columns;
+    std::uint16_t id;
+    std::uint8_t type;
+  };
+  std::ostream& out_;
+  std::uint64_t frame_ = 0;
+  std::int64_t end_ = 0;  // where the next chunk goes
+  std::vector<Entry> index_;
+  std::vector<std::string> names_;
+  std::unordered_map<std::string, std::uint16_t> ids_;
+  bool finished_ = false;
+};
+
+// Frame `frame` (negative: from the end) of the GSD file `input` written to
+// `out` as a GSD file of one frame: every chunk the frame has or takes from
+// frame 0, and `log/particles/<name>` with one value per particle, e.g. the
+// overlap counts of pair_counts as log/particles/overlaps, which OVITO and
+// python3-gsd read as a per-particle property. Throws as read_gsd does, and
+// std::invalid_argument when the values are not one per particle.
+void write_gsd_frame_with_values(const std::string& input, std::int64_t frame,
+                                 const std::string& name, const std::vector<std::uint32_t>& values,
+                                 std::ostream& out);
 
 }  // namespace pwcontact

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -57,6 +58,7 @@ struct ScreenCommandOptions {
   int threads = 0;
   std::string input = "-";
   std::string output = "-";
+  std::string gsd_output;  // --write-gsd: the frame with the counts
 };
 
 // A finite number (a tilt may be negative or zero).
@@ -187,6 +189,15 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                   "also write mu^2 of every pair found (the inscribed spheres then decide "
                   "nothing: every pair not found apart is solved, or taken in closed form)",
                   [&options] { options.with_mu2 = true; });
+  parser.add_value({"--write-gsd"}, "OUT", "none",
+                   "with a gsd input: also write OUT, a GSD file of the frame screened (every "
+                   "chunk it has or takes from frame 0) with log/particles/overlaps, the number "
+                   "of pairs each particle is in, for OVITO to colour by (like -o, it appears "
+                   "only when the run succeeds)",
+                   [&options](std::string_view path) {
+                     if (path.empty()) throw std::invalid_argument("needs a file name");
+                     options.gsd_output = path;
+                   });
   add_threads_option(parser, options.threads, "the output");
   add_output_option(parser, options.output, "the output");
   return parser;
@@ -322,6 +333,8 @@ bool parse_screen(const Arguments& arguments, ScreenCommand& command) {
                 " input has one frame (--frame is for gsd and lammps-dump)");
   if (options.columns && command.format != SceneFormat::lammps_dump)
     parser.fail(std::string("option --columns: for a lammps-dump input, not ") + format_name(command.format));
+  if (!options.gsd_output.empty() && command.format != SceneFormat::gsd)
+    parser.fail(std::string("option --write-gsd: for a gsd input, not ") + format_name(command.format));
   if (!is_text(command.format) && options.input == "-")
     parser.fail(std::string("a ") + format_name(command.format) +
                 " input is read from a file, not standard input: give FILE");
@@ -426,6 +439,8 @@ ExitStatus run_screen(const Arguments& arguments) {
   // is a usage error now rather than after the reading.
   resolve_instruction_set(Isa::automatic);
   OutputFile output(options.output);
+  std::optional<OutputFile> gsd_output;
+  if (!options.gsd_output.empty()) gsd_output.emplace(options.gsd_output);
 
   const Stopwatch reading;
   const LoadedScene scene = load_scene(command, threads);
@@ -445,6 +460,19 @@ ExitStatus run_screen(const Arguments& arguments) {
 
   const Stopwatch writing;
   write_output(output, options.outputs, options.with_mu2, pairs, scene.particles.size(), threads);
+  if (gsd_output) {
+    std::ostringstream bytes;
+    try {
+      write_gsd_frame_with_values(options.input, options.frame ? *options.frame : -1, "overlaps",
+                                  pair_counts(pairs, scene.particles.size()), bytes);
+    } catch (const std::invalid_argument& e) {
+      throw CommandError(ExitStatus::usage_error, e.what());
+    } catch (const std::runtime_error& e) {
+      throw CommandError(ExitStatus::io_error, e.what());
+    }
+    gsd_output->write(bytes.str());
+    gsd_output->commit();
+  }
   output.commit();
   std::fprintf(stderr, "pwcontact screen: %zu %s from %s (read in %s), %zu pairs, %s to %s "
                "(written in %s)\n%s",
@@ -453,6 +481,8 @@ ExitStatus run_screen(const Arguments& arguments) {
                output_name(options.outputs), output.name().c_str(),
                describe_seconds(writing.seconds()).c_str(),
                describe_screen(report, scene.box, options.cutoff).c_str());
+  if (gsd_output)
+    std::fprintf(stderr, "  the frame with log/particles/overlaps to %s\n", gsd_output->name().c_str());
   return ExitStatus::success;
 }
 

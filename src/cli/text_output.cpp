@@ -27,27 +27,34 @@ std::string formatted(const char* format, double value) {
   return text;
 }
 
-// The temporary file being written, for the handlers below: a signal or
-// std::terminate must not leave it behind either. Plain storage, read by a
-// signal handler (which may only call async-signal-safe functions: unlink,
-// signal, raise).
-char pending_temporary[4096];
-volatile std::sig_atomic_t pending = 0;
+// The temporary files being written (at most two: the output and a GSD
+// file beside it), for the handlers below: a signal or std::terminate must
+// not leave them behind either. Plain storage, read by a signal handler
+// (which may only call async-signal-safe functions: unlink, signal, raise).
+constexpr int pending_slots = 2;
+char pending_temporary[pending_slots][4096];
+volatile std::sig_atomic_t pending[pending_slots] = {0, 0};
+
+void remove_pending() {
+  for (int slot = 0; slot < pending_slots; ++slot)
+    if (pending[slot]) unlink(pending_temporary[slot]);
+}
 
 extern "C" void remove_pending_and_reraise(int signal_number) {
-  if (pending) unlink(pending_temporary);
+  remove_pending();
   std::signal(signal_number, SIG_DFL);
   std::raise(signal_number);
 }
 
 void remove_pending_and_abort() {
-  if (pending) unlink(pending_temporary);
+  remove_pending();
   std::abort();
 }
 
-// Registers `path` as the pending temporary file (one at a time: the command
-// line writes one output), installing the handlers on first use.
-void set_pending(const std::string& path) {
+// Registers `path` as a pending temporary file in a free slot (-1: none
+// free, or the path too long: then not removed by the handlers), installing
+// the handlers on first use.
+int set_pending(const std::string& path) {
   static const bool installed = [] {
     for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGQUIT})
       std::signal(signal_number, remove_pending_and_reraise);
@@ -55,13 +62,19 @@ void set_pending(const std::string& path) {
     return true;
   }();
   (void)installed;
-  pending = 0;
-  if (path.size() >= sizeof pending_temporary) return;  // cannot be registered: not removed
-  std::memcpy(pending_temporary, path.c_str(), path.size() + 1);
-  pending = 1;
+  if (path.size() >= sizeof pending_temporary[0]) return -1;
+  for (int slot = 0; slot < pending_slots; ++slot)
+    if (!pending[slot]) {
+      std::memcpy(pending_temporary[slot], path.c_str(), path.size() + 1);
+      pending[slot] = 1;
+      return slot;
+    }
+  return -1;
 }
 
-void clear_pending() { pending = 0; }
+void clear_pending(int slot) {
+  if (slot >= 0) pending[slot] = 0;
+}
 
 }  // namespace
 
@@ -111,14 +124,14 @@ OutputFile::OutputFile(const std::string& path) {
   const int descriptor = mkstemp(pattern.data());
   if (descriptor < 0) fail_to_write(name_, errno);
   temporary_path_ = pattern;
-  set_pending(temporary_path_);
+  pending_slot_ = set_pending(temporary_path_);
   fchmod(descriptor, mode);
   file_ = fdopen(descriptor, "wb");
   if (!file_) {
     const int fdopen_error = errno;
     close(descriptor);
     unlink(temporary_path_.c_str());
-    clear_pending();
+    clear_pending(pending_slot_);
     fail_to_write(name_, fdopen_error);
   }
   owns_file_ = true;
@@ -128,7 +141,7 @@ OutputFile::~OutputFile() {
   if (!owns_file_ || committed_) return;
   std::fclose(file_);
   if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
-  clear_pending();
+  clear_pending(pending_slot_);
 }
 
 void OutputFile::write(std::string_view text) noexcept {
@@ -146,7 +159,7 @@ void OutputFile::commit() {
   if (error_ == 0 && !temporary_path_.empty() &&
       std::rename(temporary_path_.c_str(), target_path_.c_str()) != 0)
     error_ = errno;
-  clear_pending();  // renamed into place, or removed below
+  clear_pending(pending_slot_);  // renamed into place, or removed below
   if (error_ == 0) return;
   if (!temporary_path_.empty()) unlink(temporary_path_.c_str());
   fail_to_write(name_, error_);

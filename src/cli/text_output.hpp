@@ -70,6 +70,7 @@ class OutputFile {
   bool owns_file_ = false;  // false for standard output
   int error_ = 0;           // errno of the first failed write
   bool committed_ = false;
+  int pending_slot_ = -1;   // registered for removal on a signal
 };
 
 // Writes the lines produced by format_line(std::string& text, std::size_t i)

@@ -18,53 +18,13 @@
 
 #include "parallel_errors.hpp"
 #include "pwcontact/scene_files.hpp"
+#include "scene/gsd_format.hpp"
 #include "scene/shape_json.hpp"
 
 namespace pwcontact {
 namespace {
 
-// The file layer's structures, as stored (little-endian, packed).
-struct Header {
-  std::uint64_t magic;
-  std::uint64_t index_location;
-  std::uint64_t index_allocated_entries;
-  std::uint64_t namelist_location;
-  std::uint64_t namelist_allocated_entries;
-  std::uint32_t schema_version;
-  std::uint32_t gsd_version;
-  char application[64];
-  char schema[64];
-  char reserved[80];
-};
-static_assert(sizeof(Header) == 256, "the GSD header is 256 bytes");
-
-struct IndexEntry {
-  std::uint64_t frame;
-  std::uint64_t n;
-  std::int64_t location;
-  std::uint32_t m;
-  std::uint16_t id;
-  std::uint8_t type;
-  std::uint8_t flags;
-};
-static_assert(sizeof(IndexEntry) == 32, "a GSD index entry is 32 bytes");
-
-constexpr std::uint64_t gsd_magic = 0x65DF65DF65DF65DFull;
-constexpr std::size_t name_segment = 64;  // namelist bytes = 64 x allocated entries
-
-enum ChunkType : std::uint8_t {
-  uint8 = 1, uint16, uint32, uint64, int8, int16, int32, int64, float32, float64, character
-};
-
-std::size_t size_of(std::uint8_t type) {
-  switch (type) {
-    case uint8: case int8: case character: return 1;
-    case uint16: case int16: return 2;
-    case uint32: case int32: case float32: return 4;
-    case uint64: case int64: case float64: return 8;
-    default: return 0;
-  }
-}
+using namespace detail::gsd;
 
 class GsdFile {
  public:
@@ -155,6 +115,38 @@ class GsdFile {
     return rows;
   }
 
+  // The entries of `frame`, in the index's order.
+  std::vector<const IndexEntry*> entries(std::uint64_t frame) const {
+    std::vector<const IndexEntry*> found;
+    auto first = std::lower_bound(index_.begin(), index_.end(), frame,
+                                  [](const IndexEntry& e, std::uint64_t f) { return e.frame < f; });
+    for (; first != index_.end() && first->frame == frame; ++first) found.push_back(&*first);
+    return found;
+  }
+  // The name of an entry's id ("" if the list lacks it).
+  std::string name_of(std::uint16_t id) const {
+    for (const auto& [name, i] : ids_)
+      if (i == id) return name;
+    return {};
+  }
+
+  // The chunk's bytes as stored.
+  std::vector<unsigned char> bytes(const IndexEntry& e, const std::string& name) const {
+    const std::uint64_t element = size_of(e.type);
+    if (element == 0) malformed("chunk " + name + " has an unknown type " + std::to_string(e.type));
+    // (Overflow-safe: a chunk larger than the file is refused.)
+    if (e.m != 0 && e.n > size_ / e.m / element)
+      malformed("truncated or corrupt: chunk " + name + " of frame " + std::to_string(e.frame) +
+                " (" + std::to_string(e.n) + "x" + std::to_string(e.m) + ") is larger than the file");
+    const std::uint64_t count = e.n * e.m * element;
+    if (e.location < 0 || std::uint64_t(e.location) > size_ || count > size_ - std::uint64_t(e.location))
+      malformed("truncated: chunk " + name + " of frame " + std::to_string(e.frame) +
+                " ends beyond the file (" + std::to_string(size_) + " bytes)");
+    std::vector<unsigned char> raw(count);
+    if (count) read_at(std::uint64_t(e.location), raw.data(), count);
+    return raw;
+  }
+
   [[noreturn]] void malformed(const std::string& what) const {
     throw std::invalid_argument(path_ + ": " + what);
   }
@@ -175,22 +167,6 @@ class GsdFile {
       offset += std::uint64_t(got);
       count -= std::size_t(got);
     }
-  }
-
-  std::vector<unsigned char> bytes(const IndexEntry& e, const std::string& name) const {
-    const std::uint64_t element = size_of(e.type);
-    if (element == 0) malformed("chunk " + name + " has an unknown type " + std::to_string(e.type));
-    // (Overflow-safe: a chunk larger than the file is refused.)
-    if (e.m != 0 && e.n > size_ / e.m / element)
-      malformed("truncated or corrupt: chunk " + name + " of frame " + std::to_string(e.frame) +
-                " (" + std::to_string(e.n) + "x" + std::to_string(e.m) + ") is larger than the file");
-    const std::uint64_t count = e.n * e.m * element;
-    if (e.location < 0 || std::uint64_t(e.location) > size_ || count > size_ - std::uint64_t(e.location))
-      malformed("truncated: chunk " + name + " of frame " + std::to_string(e.frame) +
-                " ends beyond the file (" + std::to_string(size_) + " bytes)");
-    std::vector<unsigned char> raw(count);
-    if (count) read_at(std::uint64_t(e.location), raw.data(), count);
-    return raw;
   }
 
   void read_names(const Header& h) {
@@ -345,6 +321,42 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   errors.rethrow_if_failed();
   scene.type_id = std::move(type_id);
   return scene;
+}
+
+void write_gsd_frame_with_values(const std::string& input, std::int64_t frame,
+                                 const std::string& name, const std::vector<std::uint32_t>& values,
+                                 std::ostream& out) {
+  // The frame as read_gsd reads it: its particle count, and the checks.
+  const Scene scene = read_gsd(input, frame);
+  const std::size_t n = scene.particles.size();
+  if (values.size() != n)
+    throw std::invalid_argument("write_gsd_frame_with_values: " + std::to_string(values.size()) +
+                                " values for the " + std::to_string(n) + " particles of " + input);
+  const GsdFile file(input);
+  const std::string log_name = "log/particles/" + name;
+  GsdWriter writer(out);
+  // The frame's own chunks, then those it takes from frame 0 (per-particle
+  // ones only when frame 0 has as many particles, as the schema says).
+  std::vector<std::string> written;
+  auto copy = [&](const IndexEntry& e, const std::string& chunk_name) {
+    if (chunk_name == log_name || chunk_name.empty()) return;
+    if (std::find(written.begin(), written.end(), chunk_name) != written.end()) return;
+    if (e.n == 0 || e.m == 0) return;  // (an empty chunk: nothing to copy)
+    const std::vector<unsigned char> raw = file.bytes(e, chunk_name);
+    writer.write_chunk(chunk_name, e.type, e.n, e.m, raw.data());
+    written.push_back(chunk_name);
+  };
+  for (const IndexEntry* e : file.entries(scene.frame)) copy(*e, file.name_of(e->id));
+  if (scene.frame != 0)
+    for (const IndexEntry* e : file.entries(0)) {
+      const std::string chunk_name = file.name_of(e->id);
+      const bool per_particle = chunk_name.rfind("particles/", 0) == 0 && chunk_name != "particles/N" &&
+                                chunk_name != "particles/types" && chunk_name != "particles/type_shapes";
+      if (!per_particle || e->n == n) copy(*e, chunk_name);
+    }
+  if (n > 0) writer.write(log_name, values, n);
+  writer.end_frame();
+  writer.finish();
 }
 
 }  // namespace pwcontact
