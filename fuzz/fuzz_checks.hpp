@@ -40,10 +40,13 @@ inline double condition_at(const double q1[6], const double q2[6], double lambda
 
 // One pair's full answer (mu2, lambda, status) against the reference path's
 // in double on the same numbers (float pairs widened exactly); eps is that
-// of the arithmetic the answer was computed in.
+// of the arithmetic the answer was computed in, normal_min the smallest
+// normal number of the answer's type (a valid mu2 is in its normal range,
+// or exactly 0 for coincident centres).
 inline void check_full_answer(const double r[3], const double q1[6], const double q2[6],
                               double mu2, double lambda, Status status, double eps,
-                              bool lambda_asked) {
+                              bool lambda_asked,
+                              double normal_min = std::numeric_limits<double>::min()) {
   const ContactResult<double> ref = contact_function<double>(r, q1, q2);
   if (ref.status == Status::non_finite_input || ref.status == Status::q1_not_positive_definite ||
       ref.status == Status::q2_not_positive_definite) {
@@ -53,6 +56,10 @@ inline void check_full_answer(const double r[3], const double q1[6], const doubl
   }
   if (!is_valid(status)) return;  // not_converged or out_of_range: no promise made
   expect(std::isfinite(mu2) && mu2 >= 0, "a valid mu2 is finite and not negative", mu2, ref.mu2);
+  const bool coincident = r[0] == 0 && r[1] == 0 && r[2] == 0;
+  expect(coincident ? mu2 == 0 : mu2 >= normal_min,
+         "a valid mu2 is in the normal range of its type (0 only for coincident centres)", mu2,
+         ref.mu2);
   // (The reference path in double may not converge where the answer came
   // from the long double one, with accuracy high: nothing to compare then.)
   if (lambda_asked) expect(lambda >= 0 && lambda <= 1, "lambda in [0, 1]", lambda, ref.lambda);

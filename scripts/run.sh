@@ -5,8 +5,9 @@
 #   bash scripts/run.sh demo [args]   the main job on its embedded default
 #   bash scripts/run.sh test          the whole test suite (Release build)
 #   bash scripts/run.sh sanitize      the whole test suite under ASan + UBSan
-#   bash scripts/run.sh fuzz [SECONDS] each libFuzzer target (fuzz/) for SECONDS (60) on a
-#                                     copy of its seed corpus, two at a time (clang)
+#   bash scripts/run.sh fuzz [SECONDS [SEED]]  each libFuzzer target (fuzz/) for SECONDS (60)
+#                                     on a copy of its seed corpus, two at a time (clang),
+#                                     with libFuzzer's SEED (1; 0 for a random one)
 #   bash scripts/run.sh tsan          the thread-safety tests under ThreadSanitizer (clang)
 #   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
 #   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
@@ -29,6 +30,8 @@ esac
 packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
           libbenchmark-dev libboost-dev)
 [ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
+# The scene-file tests also read back what they write with the gsd package.
+case "$job" in test|sanitize) packages+=(python3-gsd) ;; esac
 # libFuzzer and ThreadSanitizer come with clang; LLVM's OpenMP runtime is
 # the one ThreadSanitizer understands.
 case "$job" in fuzz|tsan) packages+=(clang-14 libclang-rt-14-dev libomp-14-dev) ;; esac
@@ -62,13 +65,17 @@ case "$job" in
     cmake --preset fuzz >/dev/null
     cmake --build --preset fuzz -j "$jobs"
     seconds="${1:-60}"
+    # A fixed seed by default: the same inputs on every machine at the same
+    # speed, so that a failure is reproducible with the same command; a seed
+    # of 0 lets libFuzzer choose one (for longer runs that explore).
+    seed="${2:-1}"
     work=build/fuzz/corpora
     targets=(number_table_fuzz contact_input_fuzz screen_input_fuzz options_fuzz kernels_fuzz)
     run_target() {  # a target on its own copy of the seed corpus, its log kept
       local target="$1"
       mkdir -p "$work/$target"
       cp -n fuzz/corpus/"$target"/* "$work/$target"/
-      build/fuzz/fuzz/"$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+      build/fuzz/fuzz/"$target" -seed="$seed" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="build/fuzz/$target-" "$work/$target" \
         > "build/fuzz/$target.log" 2>&1
     }

@@ -578,6 +578,82 @@ TEST_P(Promise, NearlyCoincidentCentresGiveLambdaAndTheNormalAndDoNotDependOnThe
   }
 }
 
+// Pairs of ordinary shapes scaled up by a factor log-uniform in
+// [10^size_low, 10^size_high] whose centres are |r12| log-uniform in
+// [10^r_low, 10^r_high] apart, rounded to T: an r12 of subnormals that the
+// kernels' power-of-two scaling (t ~ 1 / size) rounds to zero.
+template <class T>
+std::vector<Pair<double>> tiny_distances_to_big_shapes(std::size_t n, double size_low,
+                                                       double size_high, double r_low,
+                                                       double r_high, std::uint64_t seed) {
+  Engine engine(seed);
+  std::vector<Pair<double>> pairs;
+  while (pairs.size() < n) {
+    const double size = std::pow(10.0, size_low + (size_high - size_low) * uniform01(engine));
+    const double d = std::pow(10.0, r_low + (r_high - r_low) * uniform01(engine));
+    const auto n3 = direction(engine);
+    const Pair<double> p = make_pair({d * n3[0], d * n3[1], d * n3[2]}, ordinary_shape(engine, size),
+                                     ordinary_shape(engine, size * (0.5 + uniform01(engine))));
+    const Pair<double> rounded = convert<double>(convert<T>(p));  // exactly what T holds
+    if (rounded.r12 != std::array<double, 3>{0, 0, 0}) pairs.push_back(rounded);
+  }
+  return pairs;
+}
+
+// Each lane of a run of T pairs: valid only within the floor of the exact
+// mu^2, which must then be in T's normal range; out_of_range exactly where it
+// is not, with mu2 below T's smallest normal number. Overlap answers: valid
+// and exact (every mu^2 here is far below 1).
+template <class T>
+void expect_underflow_flagged(const Solved& set, const BatchOptions& options, double arithmetic_eps,
+                              const std::string& label) {
+  const auto batch = make_batch(convert_all<T>(set.pairs));
+  const BatchRun<T> run = run_batch(batch, options, Requested::everything());
+  std::size_t flagged = 0;
+  for (std::size_t i = 0; i < set.pairs.size(); ++i) {
+    const std::string lane = label + ", pair " + std::to_string(i);
+    const long double exact = set.exact[i].mu2;
+    ASSERT_EQ(set.exact[i].status, Status::ok) << lane << ": the oracle answers";
+    const bool outside = !(exact >= std::numeric_limits<T>::min());
+    if (run.status[i] == Status::out_of_range) {
+      ++flagged;
+      EXPECT_TRUE(outside) << lane << ": out_of_range for exact mu2 " << exact;
+      EXPECT_LT(run.mu2[i], std::numeric_limits<T>::min()) << lane;
+      continue;
+    }
+    ASSERT_TRUE(pwcontact::is_valid(run.status[i]))
+        << lane << ": " << pwcontact::status_name(run.status[i]);
+    EXPECT_FALSE(outside) << lane << ": valid mu2 " << run.mu2[i] << " for exact mu2 " << exact;
+    EXPECT_LE(relative_error(double(run.mu2[i]), exact),
+              floor_factor * arithmetic_eps * set.condition[i])
+        << lane << ": mu2 " << run.mu2[i] << ", exact " << double(exact);
+  }
+  std::printf("[ measured ] %s: %zu of %zu lanes out_of_range\n", label.c_str(), flagged,
+              set.pairs.size());
+  const OverlapRun overlap = run_overlap(batch, options);
+  for (std::size_t i = 0; i < set.pairs.size(); ++i) {
+    EXPECT_TRUE(pwcontact::is_valid(overlap.status[i])) << label << ", overlap, pair " << i;
+    EXPECT_TRUE(overlap.overlap[i]) << label << ", overlap, pair " << i;
+  }
+}
+
+TEST_P(Promise, SubnormalDistancesBetweenLargeShapesAreFlaggedNotAnsweredZero) {
+  // Was: float pairs with an r12 of float subnormals between shapes ~1e5 ..
+  // 1e15 in size gave mu2 = 0, status ok (the scaled r12 rounded to zero, a
+  // coincident pair to the kernels); the same in double below ~1e-300.
+  const Solved floats = solved(tiny_distances_to_big_shapes<float>(96, 3, 15, -45, -30, 915));
+  expect_underflow_flagged<float>(floats, with_isa(GetParam()), float_eps,
+                                  what("float pairs, subnormal r12", GetParam(),
+                                       Precision::single_precision));
+  const Solved doubles = solved(tiny_distances_to_big_shapes<double>(96, 100, 150, -323, -300, 916));
+  for (Precision precision :
+       {Precision::double_precision, Precision::mixed, Precision::single_precision})
+    expect_underflow_flagged<double>(
+        doubles, with_precision(with_isa(GetParam()), precision),
+        precision == Precision::single_precision ? float_eps : eps,
+        what("double pairs, subnormal r12", GetParam(), precision));
+}
+
 // ---------------------------------------------------------------------------
 // Forms of very different scales
 

@@ -209,12 +209,17 @@ PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p, bool always = false) {
                       xsimd::bitwise_cast<B>(biased_t << mantissa_bits), B(1));
   }
   const B t2 = t * t;
+  const auto apart = (p.r[0] != B(0)) | (p.r[1] != B(0)) | (p.r[2] != B(0));
   for (int k = 0; k < 3; ++k) p.r[k] *= t;
   for (int k = 0; k < 6; ++k) {
     p.q1[k] *= t2;
     p.q2[k] *= t2;
   }
-  return t;
+  // A tiny r (subnormal) scaled down can round to zero: the lane would look
+  // coincident (mu^2 = 0, valid). It is marked not usable (a zero scale) and
+  // left to the reference path, which scales r and Q separately.
+  const auto lost = apart & (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+  return xsimd::select(lost, B(0), t);
 }
 
 // The sum of the inputs is finite when they all are (a NaN or an infinity
