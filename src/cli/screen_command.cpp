@@ -198,7 +198,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                      if (path.empty()) throw std::invalid_argument("needs a file name");
                      options.gsd_output = path;
                    });
-  add_threads_option(parser, options.threads, "the output");
+  add_threads_option(parser, options.threads, "the lines written");
   add_output_option(parser, options.output, "the output");
   return parser;
 }

@@ -45,6 +45,7 @@ BoxGeometry::BoxGeometry(const Box& box) {
     h[2][2] = lz;
   }
   width = box.perpendicular_widths();
+  for (int k = 0; k < 3; ++k) inverse_diagonal[k] = periodic[k] ? 1 / h[k][k] : 0;
 }
 
 int CellLists::cell_of(const ClassGrid& grid, int k, double u) const {

@@ -97,11 +97,26 @@ struct BoxGeometry {
   BoxGeometry() = default;
   explicit BoxGeometry(const Box& box);
 
-  // h^-1 x (upper triangular: back substitution), periodic axes only.
+  double inverse_diagonal[3] = {};     // 1 / h[k][k] (periodic axes)
+
+  // h^-1 x (upper triangular: back substitution), periodic axes only. By
+  // the reciprocals of the diagonal rather than divisions (three dependent
+  // divisions per particle and per image): each s[k] within a few eps of
+  // its exact value either way, which the cell sides and the coarse test's
+  // slack allow for.
   void fractional(const double x[3], double s[3]) const {
-    s[2] = periodic[2] ? x[2] / h[2][2] : 0;
-    s[1] = (x[1] - h[1][2] * s[2]) / h[1][1];
-    s[0] = (x[0] - h[0][1] * s[1] - h[0][2] * s[2]) / h[0][0];
+    s[2] = periodic[2] ? x[2] * inverse_diagonal[2] : 0;
+    s[1] = (x[1] - h[1][2] * s[2]) * inverse_diagonal[1];
+    s[0] = (x[0] - h[0][1] * s[1] - h[0][2] * s[2]) * inverse_diagonal[0];
+  }
+  // s - floor(s), in [0, 1], by a conversion to a 64-bit integer where s
+  // has a fraction (|s| < 2^52) instead of a call to floor (the library is
+  // built for the baseline instruction set, which has no rounding
+  // instruction); 0 for larger s, which are whole numbers.
+  static double fraction_of(double s) {
+    if (!(std::abs(s) < 4503599627370496.0)) return 0;
+    const double whole = double(static_cast<std::int64_t>(s));  // toward zero
+    return s - (whole > s ? whole - 1 : whole);
   }
   // x wrapped into the box along the periodic axes. Orthorhombic: the exact
   // residue per axis (wrap_into_box); triclinic: through the fractional
@@ -114,7 +129,7 @@ struct BoxGeometry {
     double s[3];
     fractional(x, s);
     for (int k = 0; k < 3; ++k)
-      if (periodic[k]) s[k] -= std::floor(s[k]);  // (s is rounded already: no fmod needed)
+      if (periodic[k]) s[k] = fraction_of(s[k]);  // (s is rounded already: no fmod needed)
     for (int r = 0; r < 3; ++r) {
       if (!periodic[r]) {
         w[r] = x[r];
@@ -183,7 +198,7 @@ struct CellLists {
       double s[3];
       geometry.fractional(x, s);
       for (int k = 0; k < 3; ++k)
-        u[k] = geometry.periodic[k] ? (s[k] - std::floor(s[k])) * geometry.width[k] : x[k] - origin[k];
+        u[k] = geometry.periodic[k] ? BoxGeometry::fraction_of(s[k]) * geometry.width[k] : x[k] - origin[k];
       return;
     }
     double w[3];
