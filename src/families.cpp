@@ -91,6 +91,11 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
   const double volume = 4.0 / 3.0 * 3.14159265358979323846 * 0.125;
   const double length = std::cbrt(double(n) * volume / packing);
   SpheroidScene scene{{}, Box::periodic_box(length, length, length)};
+  // Identical shapes: one shape type (declared identical to the search).
+  if (identical_shapes) {
+    const double equatorial = 0.5 / std::cbrt(max_aspect);
+    scene.particles.add_type({equatorial, equatorial, equatorial * max_aspect});
+  }
   scene.particles.resize(n);
   const std::size_t blocks = (n + block - 1) / block;
   const double log_aspect = std::log(max_aspect);
@@ -104,8 +109,11 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
       const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
       const std::array<double, 3> centre = {length * uniform01(engine), length * uniform01(engine),
                                             length * uniform01(engine)};
-      scene.particles.set_axes(i, centre, {equatorial, equatorial, equatorial * aspect},
-                               random_quaternion(engine));
+      if (identical_shapes)
+        scene.particles.set_typed(i, centre, 0, random_quaternion(engine));
+      else
+        scene.particles.set_axes(i, centre, {equatorial, equatorial, equatorial * aspect},
+                                 random_quaternion(engine));
     }
     if (progress && omp_get_thread_num() == 0) {
       std::size_t now;

@@ -96,6 +96,11 @@ TEST(SceneFiles, ACommittedGsdFileOfTwoTypesInATriclinicBox) {
   EXPECT_NEAR(scene.box.tilt[1], -0.2, 1e-7);
   EXPECT_NEAR(scene.box.tilt[2], 0.1, 1e-7);
   ASSERT_EQ(scene.type_names, (std::vector<std::string>{"A", "B"}));
+  // The file's types are the store's shape types (radii once per type).
+  ASSERT_EQ(scene.particles.types(), 2u);
+  EXPECT_EQ(scene.particles.type_semi_axes(0), (std::array<double, 3>{0.6, 0.35, 0.25}));
+  EXPECT_EQ(scene.particles.type_semi_axes(1), (std::array<double, 3>{0.35, 0.35, 0.35}));
+  EXPECT_EQ(scene.particles.type_id(), scene.type_id);
   for (std::size_t i = 0; i < scene.particles.size(); ++i) {
     if (scene.type_id[i] == 0)
       expect_radii(scene, i, 0.6, 0.25, "Ellipsoid a 0.6 b 0.35 c 0.25");

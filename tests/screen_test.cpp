@@ -893,6 +893,143 @@ TEST(Screen, RadiiFromSemiAxesBoundTheStoredFormsEigenvalues) {
   }
 }
 
+// ---------------------------------------------------------------------------
+// Shape types
+
+// n particles of random types among `types` (and, every fourth, an untyped
+// particle of the same semi-axes by add_axes when `mixed`), random centres
+// in [0, box)^3 and random quaternions (of any norm).
+ParticleStore typed_scene(const std::vector<std::array<double, 3>>& types, std::size_t n,
+                          double box, bool mixed, std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  ParticleStore s;
+  for (const auto& axes : types) s.add_type(axes);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t t = std::uint32_t(engine() % types.size());
+    const std::array<double, 3> c = {box * unit(engine), box * unit(engine), box * unit(engine)};
+    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine), normal(engine)};
+    if (mixed && k % 4 == 3)
+      s.add_axes(c, types[t], q);
+    else
+      s.add_typed(c, t, q);
+  }
+  return s;
+}
+
+TEST(Screen, TypedParticlesAreStoredAsTheirSemiAxesWouldBe) {
+  // A typed particle has the form add_axes makes of the same numbers and its
+  // type's radii, bit for bit (the radii computed once per type).
+  const std::vector<std::array<double, 3>> types = {{0.2, 0.5, 1.2}, {0.7, 0.7, 0.7}, {1e-3, 2, 5e2}};
+  const ParticleStore typed = typed_scene(types, 300, 10, false, 51);
+  std::mt19937_64 engine(51);
+  ParticleStore by_axes;
+  for (std::size_t i = 0; i < typed.size(); ++i) {
+    const std::uint32_t t = typed.type_id()[i];
+    ASSERT_LT(t, types.size());
+    EXPECT_EQ(typed.type_semi_axes(t), types[t]);
+  }
+  // The same particles by add_axes (the same draws).
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  for (std::size_t k = 0; k < typed.size(); ++k) {
+    const std::uint32_t t = std::uint32_t(engine() % types.size());
+    const std::array<double, 3> c = {10 * unit(engine), 10 * unit(engine), 10 * unit(engine)};
+    by_axes.add_axes(c, types[t], {normal(engine), normal(engine), normal(engine), normal(engine)});
+  }
+  for (std::size_t i = 0; i < typed.size(); ++i) {
+    for (int k = 0; k < 6; ++k) ASSERT_EQ(typed.q(k)[i], by_axes.q(k)[i]) << "particle " << i;
+    EXPECT_EQ(typed.bounding_radius()[i], by_axes.bounding_radius()[i]) << "particle " << i;
+    EXPECT_EQ(typed.inscribed_radius()[i], by_axes.inscribed_radius()[i]) << "particle " << i;
+    EXPECT_EQ(typed.sphere_radius()[i], by_axes.sphere_radius()[i]) << "particle " << i;
+    EXPECT_EQ(by_axes.type_id()[i], ParticleStore::untyped);
+  }
+}
+
+TEST(Screen, ScenesOfShapeTypesMatchTheBruteForce) {
+  // Three types (an ellipsoid, a sphere, a needle) with untyped particles
+  // among them, periodic and open, overlaps and a neighbour list.
+  const std::vector<std::array<double, 3>> types = {{0.2, 0.5, 1.2}, {0.6, 0.6, 0.6}, {0.05, 0.05, 1.5}};
+  const ParticleStore s = typed_scene(types, 1500, 11, true, 52);
+  for (const Box& box : {Box::periodic_box(11, 11, 11), Box::open()})
+    for (double cutoff : {1.0, 1.3}) {
+      ScreenedPairs got;
+      const ScreenReport report = screen(s, box, cutoff, got);
+      EXPECT_FALSE(report.one_type);
+      EXPECT_FALSE(report.identical_shapes);
+      const std::string what = std::string("three types and untyped, ") +
+                               (box.periodic ? "periodic" : "open") + ", cutoff " +
+                               std::to_string(cutoff);
+      const Comparison c = compare(s, box, cutoff, got, what);
+      EXPECT_GT(c.expected, 300u) << what;
+    }
+}
+
+TEST(Screen, OneShapeTypeDeclaresIdenticalShapesAndAlignedPairsAreTakenInClosedForm) {
+  // One type, random orientations: identical shapes by declaration (one
+  // size class), the brute force's pairs. One type, one orientation (the
+  // same quaternion): every near pair of one form, mu^2 in closed form.
+  const ParticleStore random = typed_scene({{0.3, 0.3, 0.9}}, 1500, 10, false, 53);
+  const Box box = Box::periodic_box(10, 10, 10);
+  ScreenedPairs got;
+  const ScreenReport report = screen(random, box, 1, got);
+  EXPECT_TRUE(report.one_type);
+  EXPECT_TRUE(report.identical_shapes);
+  EXPECT_EQ(report.size_classes, 1u);
+  EXPECT_GT(compare(random, box, 1, got, "one type, random orientations").expected, 200u);
+
+  ParticleStore aligned;
+  aligned.add_type({0.2, 0.5, 1.2});
+  std::mt19937_64 engine(54);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int k = 0; k < 1200; ++k)
+    aligned.add_typed({9 * unit(engine), 9 * unit(engine), 9 * unit(engine)}, 0, {0.9, 0.1, -0.3, 0.2});
+  const Box aligned_box = Box::periodic_box(9, 9, 9);
+  ScreenedPairs aligned_pairs;
+  const ScreenReport aligned_report = screen(aligned, aligned_box, 1, aligned_pairs);
+  EXPECT_TRUE(aligned_report.one_type);
+  EXPECT_EQ(aligned_report.solved, 0u);
+  EXPECT_GT(aligned_report.decided_same_form, 300u);
+  EXPECT_GT(compare(aligned, aligned_box, 1, aligned_pairs, "one type, one orientation").expected,
+            200u);
+  // A second type, even of the same semi-axes, is no longer one type (the
+  // radii still show identical shapes).
+  ParticleStore two = random;
+  two.add_type({0.3, 0.3, 0.9});
+  two.add_typed({5, 5, 5}, 1, {1, 0, 0, 0});
+  const ScreenReport two_report = screen(two, box, 1, got);
+  EXPECT_FALSE(two_report.one_type);
+  EXPECT_TRUE(two_report.identical_shapes);
+}
+
+TEST(Screen, BadTypesAndTypedParticlesAreRefusedNamingThem) {
+  ParticleStore s;
+  auto message = [](auto&& call) {
+    try {
+      call();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message([&] { s.add_type({1, 0, 2}); }),
+            "type 0: semi-axes must be positive and finite, got (1, 0, 2)");
+  EXPECT_EQ(s.types(), 0u);
+  s.add_type({1, 2, 3});
+  EXPECT_EQ(message([&] { s.add_typed({0, 0, 0}, 1, {1, 0, 0, 0}); }),
+            "particle 0: type 1 does not exist (1 types)");
+  EXPECT_EQ(s.size(), 0u);
+  EXPECT_NE(message([&] { s.add_typed({0, 0, 0}, 0, {0, 0, 0, 0}); }).find("particle 0: "),
+            std::string::npos);
+  EXPECT_EQ(s.size(), 0u);
+  EXPECT_EQ(message([&] { s.add_typed({NAN, 0, 0}, 0, {1, 0, 0, 0}); }),
+            "particle 0: centre is not finite");
+  s.add_typed({0, 0, 0}, 0, {1, 0, 0, 0});
+  EXPECT_EQ(s.size(), 1u);
+  EXPECT_EQ(s.type_id()[0], 0u);
+}
+
 TEST(Screen, AnEmptySceneAndASingleParticleFindNothing) {
   ParticleStore s;
   ScreenedPairs out;

@@ -37,8 +37,8 @@ PairBatch<float> to_float(const PairBatch<double>& pairs);
 // log-uniform in [1 / max_aspect, max_aspect], each with the volume of a
 // sphere of radius 0.5, the box sized for the packing fraction (total
 // spheroid volume over box volume). identical_shapes: every spheroid
-// prolate with aspect ratio max_aspect instead (the same shape, only the
-// orientation differs; the same centres). Each block of particles draws from its
+// prolate with aspect ratio max_aspect instead, all of one shape type (the
+// same shape, only the orientation differs; the same centres). Each block of particles draws from its
 // own generator seeded by (seed, block): the same scene on every platform
 // and for every thread count.
 struct SpheroidScene {

@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "pwcontact/batch.hpp"
@@ -94,6 +95,28 @@ class ParticleStore {
   void add_ellipse(double x, double y, double a, double b, double theta);
   void set_ellipse(std::size_t i, double x, double y, double a, double b, double theta);
 
+  // Shape types, as HOOMD-blue and GSD give shapes: semi-axes once per type
+  // (positive, finite; std::invalid_argument otherwise), then particles by
+  // type id and orientation. A typed particle's radii are its type's,
+  // computed once; its Q is R diag(a^2) R^T as add_axes makes it (so that
+  // particles of one type and one quaternion have the same Q to the bit and
+  // their pairs are taken in closed form); a scene whose particles are all of
+  // one type is searched as identical shapes (one size class, one reach)
+  // by declaration, without comparing radii. Types and untyped particles
+  // may be mixed. add_type returns the new type's id (0, 1, ...).
+  std::uint32_t add_type(const std::array<double, 3>& semi_axes);
+  std::size_t types() const noexcept { return type_axes_.size(); }
+  const std::array<double, 3>& type_semi_axes(std::uint32_t type) const;
+  // (std::invalid_argument naming the particle for an unknown type, a
+  // centre that is not finite or a quaternion that is zero or not finite.)
+  void add_typed(const std::array<double, 3>& centre, std::uint32_t type,
+                 const std::array<double, 4>& quaternion);
+  void set_typed(std::size_t i, const std::array<double, 3>& centre, std::uint32_t type,
+                 const std::array<double, 4>& quaternion);
+  // Per particle: its type, or `untyped` (added by add, add_axes or add_ellipse).
+  static constexpr std::uint32_t untyped = 0xffffffffu;
+  const std::vector<std::uint32_t>& type_id() const { return type_id_; }
+
   const std::vector<double>& centre(int k) const { return centre_[k]; }
   const std::vector<double>& q(int k) const { return q_[k]; }
   const std::vector<double>& bounding_radius() const { return bounding_; }
@@ -107,9 +130,18 @@ class ParticleStore {
   // (each within a few eps |Q|), rounding the radii to the safe side.
   void store(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q,
              double smallest, double largest);
+  struct Radii {
+    double bounding, inscribed, sphere;
+  };
+  static Radii radii_of(const std::string& who, const std::array<double, 6>& q, double smallest,
+                        double largest);
   template <class Visit>
-  void for_each_array(Visit&& visit);  // every per-particle array
+  void for_each_array(Visit&& visit);  // every per-particle array of doubles
   std::vector<double> centre_[3], q_[6], bounding_, inscribed_, sphere_;
+  std::vector<std::uint32_t> type_id_;
+  // Per type: semi-axes, and the radii store() would give its particles.
+  std::vector<std::array<double, 3>> type_axes_;
+  std::vector<Radii> type_radii_;
 };
 
 struct ScreenOptions {
@@ -153,7 +185,9 @@ struct ScreenReport {
   int threads = 0;                     // the thread count used
   std::size_t size_classes = 0;        // cell lists built (one per class of bounding radius)
   bool identical_shapes = false;       // every particle the same bounding and inscribed radius
-                                       // (to 1e-12): one reach for every pair in the search
+                                       // (to 1e-12), or all of one shape type: one reach for
+                                       // every pair in the search
+  bool one_type = false;               // every particle of one shape type (ParticleStore types)
   std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
   std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
   std::size_t decided_out_by_projection = 0;  // left by that, apart by a separating plane

@@ -51,7 +51,9 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
       "total %s\n"
       "  rates: %s ellipsoids, %s candidate pairs\n",
       r.particles, where, cutoff, r.threads, r.size_classes, r.size_classes == 1 ? "" : "es",
-      r.identical_shapes ? " (identical shapes: one reach for every pair)" : "",
+      r.one_type           ? " (identical shapes, one type: one reach for every pair)"
+      : r.identical_shapes ? " (identical shapes: one reach for every pair)"
+                           : "",
       r.candidate_pairs, r.decided_out, r.decided_out_by_projection, r.decided_in, r.decided_spheres, r.decided_same_form,
       r.solved,
       r.solved ? precision_name(r.batch.precision) : "-", r.solved ? isa_name(r.batch.isa) : "-",

@@ -279,6 +279,10 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
     }
   }
 
+  // Three dimensions: the store's shape types, one per GSD type (radii once
+  // per type; one type declares identical shapes).
+  if (dimensions == 3)
+    for (const detail::ShapeAxes& shape : shapes) scene.particles.add_type(shape.a);
   scene.particles.resize(n);
   detail::ParallelErrors errors;
   const std::int64_t signed_n = std::int64_t(n);
@@ -311,8 +315,8 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
         const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
         scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0], shape.a[1], theta);
       } else {
-        scene.particles.set_axes(i, {position[3 * i], position[3 * i + 1], position[3 * i + 2]},
-                                 shape.a, q);
+        scene.particles.set_typed(i, {position[3 * i], position[3 * i + 1], position[3 * i + 2]},
+                                  type_id[i], q);
       }
     } catch (const std::invalid_argument& e) {
       file.malformed(where + ": particle " + std::to_string(i) + ": " + detail::store_message(e, i));

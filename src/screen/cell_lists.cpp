@@ -68,24 +68,31 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   if (n == 0) return lists;
 
   const std::vector<double>& inscribed = particles.inscribed_radius();
+  const std::vector<std::uint32_t>& type = particles.type_id();
   double largest = 0, smallest = std::numeric_limits<double>::infinity();
   double inscribed_low = smallest, inscribed_high = 0;
+  std::uint32_t type_low = ParticleStore::untyped, type_high = 0;
   std::array<double, 3> low, high;
   for (int k = 0; k < 3; ++k) {
     low[k] = std::numeric_limits<double>::infinity();
     high[k] = -low[k];
   }
-#pragma omp parallel for num_threads(threads) reduction(max : largest, inscribed_high) \
-    reduction(min : smallest, inscribed_low)
+#pragma omp parallel for num_threads(threads) reduction(max : largest, inscribed_high, type_high) \
+    reduction(min : smallest, inscribed_low, type_low)
   for (std::size_t i = 0; i < n; ++i) {
     largest = std::max(largest, bounding[i]);
     smallest = std::min(smallest, bounding[i]);
     inscribed_high = std::max(inscribed_high, inscribed[i]);
     inscribed_low = std::min(inscribed_low, inscribed[i]);
+    type_low = std::min(type_low, type[i]);
+    type_high = std::max(type_high, type[i]);
   }
-  // Identical shapes (or at least radii): one reach for every pair.
-  lists.identical_shapes = largest - smallest <= 1e-12 * largest &&
-                           inscribed_high - inscribed_low <= 1e-12 * inscribed_high;
+  // Identical shapes: declared by one shape type (its particles have the
+  // type's radii to the bit), else inferred from the radii. One reach for
+  // every pair.
+  lists.one_type = type_low == type_high && type_low != ParticleStore::untyped;
+  lists.identical_shapes = lists.one_type || (largest - smallest <= 1e-12 * largest &&
+                                              inscribed_high - inscribed_low <= 1e-12 * inscribed_high);
   for (int k = 0; k < 3; ++k) {
     if (geometry.periodic[k]) continue;  // (only open axes need the extent)
     const std::vector<double>& c = particles.centre(k);

@@ -179,6 +179,7 @@ struct CellLists {
   // Every particle the same bounding and inscribed radius (to 1e-12): the
   // coarse test then compares every pair with one reach, read from no member.
   bool identical_shapes = false;
+  bool one_type = false;  // every particle of one shape type
 
   // The cell-space coordinates of a wrapped centre (see BoxGeometry).
   void cell_space(const double w[3], double u[3]) const {

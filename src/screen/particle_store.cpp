@@ -9,6 +9,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/screen.hpp"
@@ -85,10 +86,12 @@ void ParticleStore::for_each_array(Visit&& visit) {
 
 void ParticleStore::reserve(std::size_t n) {
   for_each_array([n](std::vector<double>& v) { v.reserve(n); });
+  type_id_.reserve(n);
 }
 
 void ParticleStore::resize(std::size_t n) {
   for_each_array([n](std::vector<double>& v) { v.resize(n); });
+  type_id_.resize(n, untyped);
 }
 
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
@@ -134,45 +137,126 @@ void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
   store(i, centre, q, solver.eigenvalues()[0], solver.eigenvalues()[2]);
 }
 
+namespace {
+
+void check_semi_axes(const std::string& who, const std::array<double, 3>& semi_axes) {
+  for (double a : semi_axes)
+    if (!(a > 0) || !std::isfinite(a))
+      throw std::invalid_argument(who + ": semi-axes must be positive and finite, got (" +
+                                  number_text(semi_axes[0]) + ", " + number_text(semi_axes[1]) +
+                                  ", " + number_text(semi_axes[2]) + ")");
+}
+
+// Q of semi-axes along the body axes rotated by the quaternion. Equal
+// semi-axes: a sphere whatever the rotation, stored as exactly a^2 I (the
+// rotated form would carry rounding off the diagonal), so that pairs of
+// spheres are recognised and decided in closed form.
+// (A zero or non-finite quaternion: std::invalid_argument naming `who`.)
+QuadraticForm form_of_axes(const std::string& who, const std::array<double, 3>& semi_axes,
+                           const std::array<double, 4>& quaternion) {
+  const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
+  if (equal) return sphere(semi_axes[0]);
+  try {
+    return quadratic_form_from_quaternion(semi_axes, quaternion);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(who + ": " + e.what());
+  }
+}
+
+// The smallest and largest eigenvalues store() is given for such a Q, with
+// no eigensolver: the stored Q is R diag(a^2) R^T rounded, a few eps a_max^2
+// from the exact form in every entry, so by Weyl's inequality its
+// eigenvalues are within a few eps a_max^2 of the squared semi-axes, which
+// store() rounds beyond.
+std::pair<double, double> squared_extremes(const std::array<double, 3>& semi_axes) {
+  const auto [smallest, largest] = std::minmax({semi_axes[0], semi_axes[1], semi_axes[2]});
+  return {smallest * smallest, largest * largest};
+}
+
+}  // namespace
+
 void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
   check_centre(i, centre);
-  for (double a : semi_axes)
-    if (!(a > 0) || !std::isfinite(a))
-      throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite, got (" +
-                                  number_text(semi_axes[0]) + ", " + number_text(semi_axes[1]) +
-                                  ", " + number_text(semi_axes[2]) + ")");
-  // Equal semi-axes: a sphere whatever the rotation, stored as exactly a^2 I
-  // (the rotated form would carry rounding off the diagonal), so that pairs
-  // of spheres are recognised and decided in closed form.
-  const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
-  const QuadraticForm q = equal ? sphere(semi_axes[0])
-                                : quadratic_form_from_quaternion(semi_axes, quaternion);
-  // No eigensolver: the stored Q is R diag(a^2) R^T rounded, a few eps a_max^2
-  // from the exact form in every entry, so by Weyl's inequality its
-  // eigenvalues are within a few eps a_max^2 of the squared semi-axes, which
-  // store() rounds beyond.
-  const auto [smallest, largest] = std::minmax({semi_axes[0], semi_axes[1], semi_axes[2]});
-  store(i, centre, q, smallest * smallest, largest * largest);
+  check_semi_axes(particle_name(i), semi_axes);
+  const auto [smallest, largest] = squared_extremes(semi_axes);
+  store(i, centre, form_of_axes(particle_name(i), semi_axes, quaternion), smallest, largest);
 }
 
-void ParticleStore::store(std::size_t i, const std::array<double, 3>& centre,
-                          const std::array<double, 6>& q, double smallest, double largest) {
+std::uint32_t ParticleStore::add_type(const std::array<double, 3>& semi_axes) {
+  const std::size_t t = type_axes_.size();
+  if (t >= untyped) throw std::invalid_argument("ParticleStore::add_type: too many types");
+  check_semi_axes("type " + std::to_string(t), semi_axes);
+  // The radii a particle of this type gets from store() (the same
+  // arithmetic on the same numbers: the same bits).
+  const auto [smallest, largest] = squared_extremes(semi_axes);
+  const QuadraticForm q = form_of_axes("type " + std::to_string(t), semi_axes, {1, 0, 0, 0});
+  const Radii radii = radii_of("type " + std::to_string(t), q, smallest, largest);
+  type_axes_.push_back(semi_axes);
+  type_radii_.push_back(radii);
+  return std::uint32_t(t);
+}
+
+const std::array<double, 3>& ParticleStore::type_semi_axes(std::uint32_t type) const {
+  if (type >= type_axes_.size())
+    throw std::invalid_argument("ParticleStore: type " + std::to_string(type) + " does not exist (" +
+                                std::to_string(type_axes_.size()) + " types)");
+  return type_axes_[type];
+}
+
+void ParticleStore::set_typed(std::size_t i, const std::array<double, 3>& centre,
+                              std::uint32_t type, const std::array<double, 4>& quaternion) {
+  check_centre(i, centre);
+  if (type >= type_axes_.size())
+    throw std::invalid_argument(particle_name(i) + ": type " + std::to_string(type) +
+                                " does not exist (" + std::to_string(type_axes_.size()) + " types)");
+  const QuadraticForm q = form_of_axes(particle_name(i), type_axes_[type], quaternion);
+  for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
+  for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
+  const Radii& radii = type_radii_[type];
+  bounding_[i] = radii.bounding;
+  inscribed_[i] = radii.inscribed;
+  sphere_[i] = radii.sphere;
+  type_id_[i] = type;
+}
+
+void ParticleStore::add_typed(const std::array<double, 3>& centre, std::uint32_t type,
+                              const std::array<double, 4>& quaternion) {
+  const std::size_t i = size();
+  resize(i + 1);
+  try {
+    set_typed(i, centre, type, quaternion);
+  } catch (...) {
+    resize(i);
+    throw;
+  }
+}
+
+ParticleStore::Radii ParticleStore::radii_of(const std::string& who, const std::array<double, 6>& q,
+                                             double smallest, double largest) {
   // 64 eps |Q| rounds the radii outwards (bounding) and inwards (inscribed)
   // beyond the few eps |Q| by which the eigenvalues may err, so that both
   // prefilters stay on the safe side.
   const double slack = 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
   if (!(smallest > slack))
-    throw std::invalid_argument(particle_name(i) + ": Q is not positive definite (smallest eigenvalue " +
+    throw std::invalid_argument(who + ": Q is not positive definite (smallest eigenvalue " +
                                 std::to_string(smallest) + ")");
   const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
+  const bool sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
+  return {std::sqrt(largest + slack) * up, std::sqrt(smallest - slack) / up,
+          sphere ? std::sqrt(q[0]) : 0};
+}
+
+void ParticleStore::store(std::size_t i, const std::array<double, 3>& centre,
+                          const std::array<double, 6>& q, double smallest, double largest) {
+  const Radii radii = radii_of(particle_name(i), q, smallest, largest);
   for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
   for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
-  bounding_[i] = std::sqrt(largest + slack) * up;
-  inscribed_[i] = std::sqrt(smallest - slack) / up;
-  const bool sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
-  sphere_[i] = sphere ? std::sqrt(q[0]) : 0;
+  bounding_[i] = radii.bounding;
+  inscribed_[i] = radii.inscribed;
+  sphere_[i] = radii.sphere;
+  type_id_[i] = untyped;
 }
 
 void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, double b,

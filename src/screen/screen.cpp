@@ -374,6 +374,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
   report.size_classes = lists.grids.size();
   report.identical_shapes = lists.identical_shapes;
+  report.one_type = lists.one_type;
   double t1 = omp_get_wtime();
   report.seconds_cells = t1 - t0;
 
