@@ -38,6 +38,19 @@ inline double condition_at(const double q1[6], const double q2[6], double lambda
   return e[2] / e[0];
 }
 
+// Whether the reference path answers the pair; where it rejects it (input
+// not finite, a form not positive definite) the answer's status must be
+// its reason.
+inline bool has_answer(const ContactResult<double>& ref, Status status) {
+  if (ref.status == Status::non_finite_input || ref.status == Status::q1_not_positive_definite ||
+      ref.status == Status::q2_not_positive_definite) {
+    expect(status == ref.status, "the reference path's reason for an invalid pair",
+           double(status), double(ref.status));
+    return false;
+  }
+  return true;
+}
+
 // One pair's full answer (mu2, lambda, status) against the reference path's
 // in double on the same numbers (float pairs widened exactly); eps is that
 // of the arithmetic the answer was computed in, normal_min the smallest
@@ -48,12 +61,7 @@ inline void check_full_answer(const double r[3], const double q1[6], const doubl
                               bool lambda_asked,
                               double normal_min = std::numeric_limits<double>::min()) {
   const ContactResult<double> ref = contact_function<double>(r, q1, q2);
-  if (ref.status == Status::non_finite_input || ref.status == Status::q1_not_positive_definite ||
-      ref.status == Status::q2_not_positive_definite) {
-    expect(status == ref.status, "the reference path's reason for an invalid pair",
-           double(status), double(ref.status));
-    return;
-  }
+  if (!has_answer(ref, status)) return;
   if (!is_valid(status)) return;  // not_converged or out_of_range: no promise made
   expect(std::isfinite(mu2) && mu2 >= 0, "a valid mu2 is finite and not negative", mu2, ref.mu2);
   const bool coincident = r[0] == 0 && r[1] == 0 && r[2] == 0;
@@ -78,12 +86,7 @@ inline void check_full_answer(const double r[3], const double q1[6], const doubl
 inline void check_overlap_answer(const double r[3], const double q1[6], const double q2[6],
                                  bool overlap, Status status, double cutoff2, double eps) {
   const ContactResult<double> ref = contact_function<double>(r, q1, q2);
-  if (ref.status == Status::non_finite_input || ref.status == Status::q1_not_positive_definite ||
-      ref.status == Status::q2_not_positive_definite) {
-    expect(status == ref.status, "the reference path's reason for an invalid pair",
-           double(status), double(ref.status));
-    return;
-  }
+  if (!has_answer(ref, status)) return;
   if (!is_valid(status)) return;
   if (ref.status == Status::out_of_range) {
     expect(overlap == (ref.mu2 < cutoff2), "an out-of-range mu2 decides the overlap", overlap,

@@ -25,7 +25,7 @@ struct PairsOptions {
 
 OptionParser pairs_parser(PairsOptions& options) {
   const RandomFamily family;
-  char description[512];
+  char description[1024];
   std::snprintf(description, sizeof description,
                 "Generates random pairs of ellipsoids (semi-axes uniform in [%g, %g], random "
                 "orientations, centre distance uniform in [0, %g]), solves them with the "
