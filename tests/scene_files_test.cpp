@@ -340,6 +340,8 @@ ellipse = [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5}]
 write('tilted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0)),
       orientation=((1, 0, 0, 0), (0.8, 0.6, 0, 0)))
 write('lifted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0.5)))
+write('ellipse_2d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}], dimensions=2, position=((0, 0, 0), (1, 1, 0)))
+write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
 )";
   ASSERT_TRUE(run_python_gsd(directory_, bad));
   auto message = [&](const char* file) {
@@ -358,6 +360,12 @@ write('lifted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0.5)))
   EXPECT_NE(message("lifted_2d.gsd").find("particle 1: a two-dimensional scene, but its z is 0.5"),
             std::string::npos)
       << message("lifted_2d.gsd");
+  // An Ellipse shape: an ellipse in 2D, refused in 3D.
+  const Scene ellipses = pwcontact::read_gsd((directory_ / "ellipse_2d.gsd").string());
+  for (std::size_t i = 0; i < 2; ++i) expect_radii(ellipses, i, 1, 0.5, "Ellipse a 1 b 0.5");
+  EXPECT_NE(message("ellipse_3d.gsd").find("its shape is an Ellipse, but the scene is three-dimensional"),
+            std::string::npos)
+      << message("ellipse_3d.gsd");
   EXPECT_NE(message("zero_q.gsd").find("is zero"), std::string::npos) << message("zero_q.gsd");
 }
 

@@ -136,8 +136,16 @@ ShapeAxes parse_shape(const std::string& json, bool two_dimensional) {
     if (two_dimensional) return {{a, b, a < b ? a : b}};
     return {{a, b, positive(numbers, "c", type)}};
   }
+  // (Not among the shapes GSD's visualisation schema names, but the natural
+  // spelling of a 2D ellipse: taken in a 2D scene, refused in a 3D one.)
+  if (type == "Ellipse") {
+    if (!two_dimensional)
+      throw std::invalid_argument("its shape is an Ellipse, but the scene is three-dimensional");
+    const double a = positive(numbers, "a", type), b = positive(numbers, "b", type);
+    return {{a, b, a < b ? a : b}};
+  }
   throw std::invalid_argument("its shape is '" + type +
-                              "', not an ellipsoid (Ellipsoid or Sphere)");
+                              "', not an ellipsoid (Ellipsoid, Sphere, or Ellipse in 2D)");
 }
 
 }  // namespace pwcontact::detail

@@ -1,7 +1,8 @@
 // The per-type shapes of a GSD file (particles/type_shapes): one JSON object
 // per type, of which the ellipsoids are {"type": "Ellipsoid", "a": .., "b":
 // .., "c": ..} (semi-axes) and {"type": "Sphere", "diameter": ..}; in 2D the
-// Ellipsoid's a and b are an ellipse's. A small parser for these flat
+// Ellipsoid's a and b are an ellipse's (and {"type": "Ellipse", "a", "b"} is
+// taken too). A small parser for these flat
 // objects (strings, numbers; nested values skipped), nothing more.
 #pragma once
 
