@@ -655,6 +655,138 @@ TEST_P(Promise, SubnormalDistancesBetweenLargeShapesAreFlaggedNotAnsweredZero) {
 }
 
 // ---------------------------------------------------------------------------
+// A form flat beyond the double's resolution along one axis
+
+// Axis-aligned pairs (Q1, Q2 diagonal), one of Q1's entries eps_flat times
+// the others: a disc of thickness ~sqrt(eps_flat). Their contact function,
+// f(l) = l (1 - l) sum_k r_k^2 / ((1 - l) d1_k + l d2_k), is concave, and
+// its maximum is found here by a ternary search in 50 digits (200 steps:
+// lambda to 1e-35, mu^2 to 1e-70): an oracle that shares nothing with the
+// library's Newton iteration.
+struct DiagonalPair {
+  std::array<double, 3> r, d1, d2;
+};
+
+Float50 diagonal_f(const DiagonalPair& p, const Float50& l) {
+  Float50 sum = 0;
+  for (int k = 0; k < 3; ++k)
+    sum += Float50(p.r[k]) * Float50(p.r[k]) / ((1 - l) * Float50(p.d1[k]) + l * Float50(p.d2[k]));
+  return l * (1 - l) * sum;
+}
+
+std::pair<long double, long double> diagonal_maximum(const DiagonalPair& p) {
+  Float50 lo = 0, hi = 1;
+  for (int it = 0; it < 200; ++it) {
+    const Float50 a = lo + (hi - lo) / 3, b = hi - (hi - lo) / 3;
+    if (diagonal_f(p, a) < diagonal_f(p, b)) lo = a;
+    else hi = b;
+  }
+  const Float50 l = (lo + hi) / 2;
+  return {diagonal_f(p, l).convert_to<long double>(), l.convert_to<long double>()};
+}
+
+TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
+  // Was (found by kernels_fuzz): Q1 = diag(1, 6.4e-323, 1), Q2 = I, r12 =
+  // (1, 2, 3): mu^2 = 4, status ok_fallback (exact 4.9), and the overlap
+  // answer at cutoff 2.1 wrong, for any flatness below ~1e-45: from the
+  // radial guess ~sqrt(flatness) the reference path's Newton steps grew
+  // fourfold and more, while the curvature made each predicted gain
+  // negligible, and it stopped as if stalled on round-off.
+  Engine engine(917);
+  std::vector<DiagonalPair> pairs;
+  for (int n = 0; n < 120; ++n) {
+    DiagonalPair p;
+    const double flat = std::pow(10.0, -20 - 303 * uniform01(engine));
+    for (int k = 0; k < 3; ++k) {
+      p.d1[k] = log_uniform(engine, 0.25, 4);
+      p.d2[k] = log_uniform(engine, 0.25, 4);
+    }
+    p.d1[n % 3] = std::max(flat * p.d1[n % 3], 5e-324);
+    const auto n3 = direction(engine);
+    for (int k = 0; k < 3; ++k) p.r[k] = n3[k];
+    // r12 scaled so that mu is in [0.5, 2] (the scale rounded: the oracle
+    // is taken on the pair as stored).
+    const long double mu = 0.5 + 1.5 * uniform01(engine);
+    const double k = double(std::sqrt(mu * mu / diagonal_maximum(p).first));
+    for (double& x : p.r) x *= k;
+    if (n % 2) std::swap(p.d1, p.d2), p.r = {-p.r[0], -p.r[1], -p.r[2]};
+    pairs.push_back(p);
+  }
+  std::vector<Pair<double>> as_pairs;
+  std::vector<long double> exact, condition;
+  for (const DiagonalPair& p : pairs) {
+    as_pairs.push_back(make_pair(p.r, {p.d1[0], 0, 0, p.d1[1], 0, p.d1[2]},
+                                 {p.d2[0], 0, 0, p.d2[1], 0, p.d2[2]}));
+    const auto [mu2, l] = diagonal_maximum(p);
+    exact.push_back(mu2);
+    long double smallest = INFINITY, largest = 0;
+    for (int k = 0; k < 3; ++k) {
+      const long double d = (1 - l) * p.d1[k] + l * p.d2[k];
+      smallest = std::min(smallest, d);
+      largest = std::max(largest, d);
+    }
+    condition.push_back(largest / smallest);
+  }
+  auto check = [&](const std::vector<double>& mu2, const std::vector<Status>& status,
+                   double arithmetic_eps, const std::string& label) {
+    std::size_t flagged = 0;
+    MaxError ratio;
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      if (!pwcontact::is_valid(status[i])) {
+        ++flagged;
+        EXPECT_EQ(status[i], Status::not_converged) << label << ", pair " << i;
+        if (std::getenv("PWCONTACT_PRINT_FLAGGED"))
+          std::printf("flagged pair %zu: r %.17g %.17g %.17g d1 %.17g %.17g %.17g d2 %.17g %.17g %.17g\n", i,
+                      pairs[i].r[0], pairs[i].r[1], pairs[i].r[2], pairs[i].d1[0], pairs[i].d1[1],
+                      pairs[i].d1[2], pairs[i].d2[0], pairs[i].d2[1], pairs[i].d2[2]);
+        continue;
+      }
+      const double error = relative_error(mu2[i], exact[i]);
+      ratio.add(i, error / (arithmetic_eps * double(condition[i])));
+      EXPECT_LE(error, floor_factor * arithmetic_eps * double(condition[i]))
+          << label << ", pair " << i << ": mu2 " << mu2[i] << ", exact " << double(exact[i])
+          << ", " << pwcontact::status_name(status[i]);
+    }
+    print_measured(label + ", error / (eps cond(Q(lambda*)))", ratio);
+    std::printf("[ measured ] %s: %zu of %zu lanes with an invalid status\n", label.c_str(), flagged,
+                pairs.size());
+  };
+  for (Precision precision :
+       {Precision::double_precision, Precision::mixed, Precision::single_precision})
+    for (Accuracy accuracy : {Accuracy::standard, Accuracy::high}) {
+      if (accuracy == Accuracy::high && precision == Precision::single_precision) continue;
+      const std::string label = what("a form flat to 1e-20 .. 1e-323", GetParam(), precision) +
+                                (accuracy == Accuracy::high ? ", accuracy high" : "");
+      const BatchOptions options =
+          with_precision(with_isa(GetParam()), precision, pwcontact::Formulation::automatic, accuracy);
+      const BatchRun<double> run = run_batch(make_batch(as_pairs), options, Requested::everything());
+      check(run.mu2, run.status, precision == Precision::single_precision ? float_eps : eps, label);
+      if (accuracy == Accuracy::high) continue;
+      // Overlap answers at cutoffs on both sides of every pair's mu.
+      for (double cutoff : {0.7, 1.0, 1.6}) {
+        const OverlapRun overlap = run_overlap(make_batch(as_pairs), options, cutoff);
+        for (std::size_t i = 0; i < pairs.size(); ++i) {
+          if (std::abs(exact[i] - cutoff * cutoff) <= 1e-9L * cutoff * cutoff) continue;
+          EXPECT_TRUE(pwcontact::is_valid(overlap.status[i]) || overlap.status[i] == Status::not_converged)
+              << label << ", overlap, pair " << i;
+          if (!pwcontact::is_valid(overlap.status[i])) continue;
+          EXPECT_EQ(bool(overlap.overlap[i]), exact[i] < cutoff * cutoff)
+              << label << ", overlap at cutoff " << cutoff << ", pair " << i << ", exact mu2 "
+              << double(exact[i]);
+        }
+      }
+    }
+  std::vector<double> scalar_mu2;
+  std::vector<Status> scalar_status;
+  for (const auto& p : as_pairs) {
+    const ContactResult<double> r = reference(p);
+    scalar_mu2.push_back(r.mu2);
+    scalar_status.push_back(r.status);
+  }
+  check(scalar_mu2, scalar_status, eps, "a form flat to 1e-20 .. 1e-323, scalar path");
+}
+
+// ---------------------------------------------------------------------------
 // Forms of very different scales
 
 TEST_P(Promise, FormsOfVeryDifferentScalesDownToTheSmallestSubnormalAreAnswered) {

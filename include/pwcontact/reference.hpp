@@ -384,12 +384,19 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
 
     // Done when lambda no longer moves at its own precision, or when Newton
     // has stalled on round-off noise in g while the predicted gain in mu^2,
-    // g^2 / (2 g'), is already below one ulp of f.
+    // g^2 / (2 g'), is already below one ulp of f. The prediction is the
+    // quadratic model's, good only for a step small beside the distance to
+    // the nearest singularity of f (det Q(lambda) = 0 lies outside [0, 1],
+    // so at least min(lambda, 1 - lambda) away): a step beyond 1/16 of it is
+    // progress, not a stall. (Was: Q1 = diag(1, 1e-50, 1), Q2 = I, r = (1, 2,
+    // 3): from the radial guess ~sqrt(1e-50) Newton's steps grew fourfold
+    // and more each time, the curvature ~1e-50 / lambda^3 made every predicted
+    // gain negligible, and mu^2 = 4 was returned for 4.9.)
     const T scale = lambda < T(1) - lambda ? lambda : T(1) - lambda;
     const bool settled = abs(next - lambda) <= T(2) * eps * scale ||
                          hi - lo <= T(2) * eps * scale;
     const bool stalled = newton && it > 2 && abs(step) >= abs(previous_step) / 2 &&
-                         res.g * step <= T(2) * eps * res.f;
+                         abs(step) <= scale / 16 && res.g * step <= T(2) * eps * res.f;
     if (settled || stalled) {
       lambda = next;
       const detail::Residual<T> final_res = detail::evaluate(r, p1, p2, lambda);
