@@ -787,6 +787,68 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
 }
 
 // ---------------------------------------------------------------------------
+// A maximiser a few thousand ulps from 1
+
+TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
+  // Was (found by kernels_fuzz): Q1 ~1 (off-diagonal), Q2 = diag(8e-305,
+  // 1.7e-307, 4.9e-25), r12 ~(1.8, 1.9, 0): lambda* = 1 - 2.35e-13, and the
+  // scalar path (and every double path falling back to it) returned mu^2 5e-10
+  // low with status ok: near 1 lambda is resolved only to eps, a Newton step
+  // below half an ulp of 1 rounded to no step, and the iteration "settled".
+  // The family: an ordinary shape beside a form ~1e-12 .. 1e-30 along one
+  // axis and ~1e-30 .. 1e-300 along the other two (both orders), mu in
+  // [0.5, 2]: lambda* within ~1e-6 .. 1e-15 of 1 (or of 0), cond(Q(lambda*))
+  // moderate, so that the floor is tight.
+  Engine engine(933);
+  std::vector<Pair<double>> base;
+  for (int n = 0; n < 96; ++n) {
+    std::array<double, 3> d;
+    for (double& x : d) x = std::pow(10.0, -30 - 270 * uniform01(engine));
+    d[n % 3] = std::pow(10.0, -12 - 18 * uniform01(engine));
+    const pwcontact::QuadraticForm huge = {d[0], 0, 0, d[1], 0, d[2]};
+    const auto n3 = direction(engine);
+    const auto other = ordinary_shape(engine);
+    base.push_back(n % 2 ? make_pair(n3, huge, other) : make_pair(n3, other, huge));
+  }
+  const Solved set = solved(placed(base, engine));
+  for (std::size_t i = 0; i < set.pairs.size(); ++i)
+    ASSERT_EQ(set.exact[i].status, Status::ok) << "the oracle answers every pair, pair " << i;
+  // Float cannot hold the form's entries below ~1e-38 (nor mu^2 of a form
+  // scaled beyond its range): a status saying so is allowed there.
+  auto float_allowed = [](std::size_t, Status s) {
+    return s == Status::q1_not_positive_definite || s == Status::q2_not_positive_definite ||
+           s == Status::out_of_range || s == Status::not_converged;
+  };
+  for (Precision precision :
+       {Precision::double_precision, Precision::mixed, Precision::single_precision})
+    for (Accuracy accuracy : {Accuracy::standard, Accuracy::high}) {
+      if (accuracy == Accuracy::high && precision == Precision::single_precision) continue;
+      const std::string label = what("a form 1e6 .. 1e150 times larger along two axes", GetParam(),
+                                     precision) +
+                                (accuracy == Accuracy::high ? ", accuracy high" : "");
+      const BatchOptions options = with_precision(
+          with_isa(GetParam()), precision, pwcontact::Formulation::automatic, accuracy);
+      const BatchRun<double> run = run_batch(make_batch(set.pairs), options, Requested::everything());
+      const bool in_float = precision == Precision::single_precision;
+      print_broken(label, in_float ? expect_promise_kept(set, run, float_eps, float_allowed, label)
+                                   : expect_promise_kept(set, run, eps, never, label));
+    }
+  MaxError ratio;
+  for (std::size_t i = 0; i < set.pairs.size(); ++i) {
+    const ContactResult<double> r = reference(set.pairs[i]);
+    ASSERT_EQ(r.status, Status::ok) << "scalar path, pair " << i;
+    const double error = relative_error(r.mu2, set.exact[i].mu2);
+    ratio.add(i, error / (eps * set.condition[i]));
+    EXPECT_LE(error, floor_factor * eps * set.condition[i])
+        << "scalar path, pair " << i << ": mu2 " << r.mu2 << ", exact "
+        << double(set.exact[i].mu2) << ", lambda " << r.lambda << ", exact "
+        << double(set.exact[i].lambda);
+  }
+  print_measured("a form 1e6 .. 1e150 times larger along two axes, scalar path, "
+                 "error / (eps cond(Q(lambda*)))", ratio);
+}
+
+// ---------------------------------------------------------------------------
 // Forms of very different scales
 
 TEST_P(Promise, FormsOfVeryDifferentScalesDownToTheSmallestSubnormalAreAnswered) {

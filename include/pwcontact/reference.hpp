@@ -300,6 +300,85 @@ Status range_status(T mu2) {
              : Status::out_of_range;
 }
 
+// The largest number under 1: lambda stays in [1 - below_one, below_one] =
+// [eps/2, 1 - eps/2]. A maximiser closer to 0 or 1 than that (size ratios
+// beyond ~1e16) is represented by the bound to a relative eps/2 in f, by
+// concavity: f(l) >= l mu^2 / lambda* on [0, lambda*] and
+// f(l) >= (1 - l) mu^2 / (1 - lambda*) on [lambda*, 1]. Below eps/2 the
+// terms of Q(lambda) would span more than the type's range (Q(lambda) ~
+// lambda Q1 beside a form lost to the scaling: its products overflow).
+template <class T>
+T below_one() {
+  return T(1) - std::numeric_limits<T>::epsilon() / 2;
+}
+
+template <class T>
+struct Maximum {
+  T f = 0;         // f(lambda) of the scaled pair
+  T lambda = 0;
+  bool converged = false;
+};
+
+// The safeguarded Newton iteration on g (see the header) from a start in
+// [0, 1]; iterations counts the evaluations of (f, g, g'), added to the
+// count given.
+template <class T>
+Maximum<T> maximise(const T r[3], const T* p1, const T* p2, T lambda,
+                    const ReferenceOptions& options, int& iterations) {
+  using std::abs;
+  using std::isfinite;
+  const T eps = std::numeric_limits<T>::epsilon();
+  const T ceiling = below_one<T>();
+  const T floor = T(1) - ceiling;  // eps / 2, exactly
+  if (lambda > ceiling) lambda = ceiling;
+  if (lambda < floor) lambda = floor;
+  T lo = 0, hi = 1;
+  T previous_step = 1;
+  for (int it = 1; it <= options.max_iterations; ++it) {
+    const Residual<T> res = evaluate(r, p1, p2, lambda);
+    // Lost to round-off: give up honestly. (g' = 0 is allowed: a form that
+    // the scaling left without digits has none; the step is then a bisection.)
+    if (!(res.dg >= 0) || !(res.f >= 0)) {
+      iterations += it;
+      return {};
+    }
+    if (res.g > 0) hi = lambda;
+    if (res.g < 0) lo = lambda;
+    const T step = res.g / res.dg;
+    T next = lambda - step;
+    const bool newton = lo <= next && next <= hi;  // inclusive, see header
+    if (!newton) next = (lo + hi) / 2;
+    if (next > ceiling) next = ceiling;
+    if (next < floor) next = floor;
+
+    // Done when lambda no longer moves at its own precision, or when Newton
+    // has stalled on round-off noise in g while the predicted gain in mu^2,
+    // g^2 / (2 g'), is already below one ulp of f. The prediction is the
+    // quadratic model's, good only for a step small beside the distance to
+    // the nearest singularity of f (det Q(lambda) = 0 lies outside [0, 1],
+    // so at least min(lambda, 1 - lambda) away): a step beyond 1/16 of it is
+    // progress, not a stall. (Was: Q1 = diag(1, 1e-50, 1), Q2 = I, r = (1, 2,
+    // 3): from the radial guess ~sqrt(1e-50) Newton's steps grew fourfold
+    // and more each time, the curvature ~1e-50 / lambda^3 made every predicted
+    // gain negligible, and mu^2 = 4 was returned for 4.9.)
+    const T scale = lambda < T(1) - lambda ? lambda : T(1) - lambda;
+    const bool settled = abs(next - lambda) <= T(2) * eps * scale ||
+                         hi - lo <= T(2) * eps * scale;
+    const bool stalled = newton && it > 2 && abs(step) >= abs(previous_step) / 2 &&
+                         abs(step) <= scale / 16 && res.g * step <= T(2) * eps * res.f;
+    if (settled || stalled) {
+      iterations += it + 1;
+      const Residual<T> final_res = evaluate(r, p1, p2, next);
+      if (!(final_res.f > 0) || !isfinite(final_res.f)) return {};
+      return {final_res.f, next, true};
+    }
+    if (newton) previous_step = step;
+    lambda = next;
+  }
+  iterations += options.max_iterations;
+  return {};
+}
+
 }  // namespace detail
 
 // The contact function of two ellipsoids (c1, Q1) and (c2, Q2), with
@@ -344,71 +423,59 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   // Ellipsoid 1 negligible: solved as ellipsoid 2, since mu^2(r, Q1, Q2) =
   // mu^2(-r, Q2, Q1) with lambda -> 1 - lambda, so that the maximiser is near
   // 1, where lambda's clamp below handles it.
-  const bool swapped = slope0 == infinity && negligible(p1, p2);
+  bool swapped = slope0 == infinity && negligible(p1, p2);
   if (swapped) {
     std::swap(p1, p2);
     std::swap(slope0, slope1);
     for (T& x : r) x = -x;
   }
 
-  // lambda stays at or below the largest number under 1: f(1) = 0, while a
-  // maximiser closer to 1 than that (size ratios beyond ~1e16, where the
-  // radial guess and the steps round to 1) is represented by it to a
-  // relative 2^-digits in f (concavity: f(l) >= l mu^2 / lambda* on
-  // [0, lambda*]). The side of 0 needs nothing: lambda* ~ a1 / a2 there, and
-  // the nondimensionalised forms keep that far above the smallest number.
-  // A slope that is not usable for another reason (a form positive definite
-  // but too ill-conditioned for its factorisation in T) leaves the guess at
-  // 1/2: the safeguarded iteration needs none.
-  const T below_one = T(1) - eps / 2;
+  // lambda stays in [eps/2, 1 - eps/2] (detail::below_one). A slope that is
+  // not usable for another reason (a form positive definite but too
+  // ill-conditioned for its factorisation in T) leaves the guess at 1/2: the
+  // safeguarded iteration needs none.
+  //
+  // Near 1, though, lambda is resolved only to eps, not eps (1 - lambda): a
+  // Newton step below half an ulp of 1 rounds to no step at all, and the
+  // iteration "settles" wherever that happens. (Was: Q2 ~1e-25 beside Q1 ~1,
+  // lambda* = 1 - 2.35e-13: the radial guess rounded to 1, the first step to
+  // none, and mu^2 came back 5e-10 low, status ok.) So a maximiser above 1/2
+  // is sought on the mirrored pair, mu^2(r, Q1, Q2) = mu^2(-r, Q2, Q1) at
+  // 1 - lambda, where 1 - lambda is a small number held to full precision:
+  // from the start when the radial guess is above 1/2, and again from the
+  // answer when the iteration ends above 1/2 all the same. Not so for a
+  // negligible form, whose maximiser within ~eps of 1 is meant to be
+  // represented by the clamp.
   T lambda = T(0.5);
   if (slope0 < infinity && slope1 < infinity)
     lambda = detail::radial_initial_guess(slope0, slope1);
   else if (slope1 == infinity && negligible(p2, p1))
-    lambda = below_one;
-  if (lambda > below_one) lambda = below_one;
-  T lo = 0, hi = 1;
-  T previous_step = 1;
-  for (int it = 1; it <= options.max_iterations; ++it) {
-    const detail::Residual<T> res = detail::evaluate(r, p1, p2, lambda);
-    // Lost to round-off: give up honestly. (g' = 0 is allowed: a form that
-    // the scaling left without digits has none; the step is then a bisection.)
-    if (!(res.dg >= 0) || !(res.f >= 0)) break;
-    if (res.g > 0) hi = lambda;
-    if (res.g < 0) lo = lambda;
-    const T step = res.g / res.dg;
-    T next = lambda - step;
-    const bool newton = lo <= next && next <= hi;  // inclusive, see header
-    if (!newton) next = (lo + hi) / 2;
-    if (next > below_one) next = below_one;
-
-    // Done when lambda no longer moves at its own precision, or when Newton
-    // has stalled on round-off noise in g while the predicted gain in mu^2,
-    // g^2 / (2 g'), is already below one ulp of f. The prediction is the
-    // quadratic model's, good only for a step small beside the distance to
-    // the nearest singularity of f (det Q(lambda) = 0 lies outside [0, 1],
-    // so at least min(lambda, 1 - lambda) away): a step beyond 1/16 of it is
-    // progress, not a stall. (Was: Q1 = diag(1, 1e-50, 1), Q2 = I, r = (1, 2,
-    // 3): from the radial guess ~sqrt(1e-50) Newton's steps grew fourfold
-    // and more each time, the curvature ~1e-50 / lambda^3 made every predicted
-    // gain negligible, and mu^2 = 4 was returned for 4.9.)
-    const T scale = lambda < T(1) - lambda ? lambda : T(1) - lambda;
-    const bool settled = abs(next - lambda) <= T(2) * eps * scale ||
-                         hi - lo <= T(2) * eps * scale;
-    const bool stalled = newton && it > 2 && abs(step) >= abs(previous_step) / 2 &&
-                         abs(step) <= scale / 16 && res.g * step <= T(2) * eps * res.f;
-    if (settled || stalled) {
-      lambda = next;
-      const detail::Residual<T> final_res = detail::evaluate(r, p1, p2, lambda);
-      using std::isfinite;
-      if (!(final_res.f > 0) || !isfinite(final_res.f)) break;
-      const T mu2 = scaled.unscaled_mu2(final_res.f);
-      return {mu2, swapped ? T(1) - lambda : lambda, detail::range_status(mu2), it + 1};
-    }
-    if (newton) previous_step = step;
-    lambda = next;
+    lambda = detail::below_one<T>();
+  const bool mirror = !negligible(p2, p1);
+  auto mirror_pair = [&] {
+    std::swap(p1, p2);
+    for (T& x : r) x = -x;
+    swapped = !swapped;
+  };
+  if (mirror && lambda > T(0.5)) {
+    mirror_pair();
+    lambda = detail::radial_initial_guess(slope1, slope0);
   }
-  return {nan, nan, Status::not_converged, options.max_iterations};
+  int iterations = 0;
+  detail::Maximum<T> found = detail::maximise(r, p1, p2, lambda, options, iterations);
+  if (mirror && found.converged && found.lambda > T(0.5)) {
+    mirror_pair();
+    const detail::Maximum<T> again =
+        detail::maximise(r, p1, p2, T(1) - found.lambda, options, iterations);
+    if (again.converged)
+      found = again;
+    else
+      mirror_pair();  // keep the first answer, in its own frame
+  }
+  if (!found.converged) return {nan, nan, Status::not_converged, iterations};
+  const T mu2 = scaled.unscaled_mu2(found.f);
+  return {mu2, swapped ? T(1) - found.lambda : found.lambda, detail::range_status(mu2),
+          iterations};
 }
 
 // What else the maximiser lambda gives (shared/notes/numerics.md), with
