@@ -117,6 +117,50 @@ class ParticleStore {
   static constexpr std::uint32_t untyped = 0xffffffffu;
   const std::vector<std::uint32_t>& type_id() const { return type_id_; }
 
+  // One particle as the store holds it (centre, Q, radii, type), made with
+  // the same checks and the same radii as the set functions above, but not
+  // stored: a trial position and orientation for a Scene's queries and
+  // moves. Only the store makes one (its radii are trusted by the
+  // prefilters); `who` names it in the exceptions ("trial particle").
+  class Particle {
+   public:
+    const std::array<double, 3>& centre() const { return centre_; }
+    const std::array<double, 6>& q() const { return q_; }
+    double bounding_radius() const { return bounding_; }
+    double inscribed_radius() const { return inscribed_; }
+    double sphere_radius() const { return sphere_; }
+    std::uint32_t type() const { return type_; }
+    // The same particle translated to another centre (finite; else
+    // std::invalid_argument): its form and radii kept, no recomputation.
+    Particle moved_to(const std::array<double, 3>& centre) const;
+
+   private:
+    friend class ParticleStore;
+    Particle() = default;
+    std::array<double, 3> centre_{};
+    std::array<double, 6> q_{};
+    double bounding_ = 0, inscribed_ = 0, sphere_ = 0;
+    std::uint32_t type_ = untyped;
+  };
+  static Particle particle(const std::array<double, 3>& centre, const std::array<double, 6>& q,
+                           const std::string& who = "trial particle");
+  static Particle particle_axes(const std::array<double, 3>& centre,
+                                const std::array<double, 3>& semi_axes,
+                                const std::array<double, 4>& quaternion,
+                                const std::string& who = "trial particle");
+  Particle particle_typed(const std::array<double, 3>& centre, std::uint32_t type,
+                          const std::array<double, 4>& quaternion,
+                          const std::string& who = "trial particle") const;
+  // Particle i as stored (i < size(); std::out_of_range otherwise).
+  Particle particle_at(std::size_t i) const;
+  // Stores a particle made above at index i (< size()), or at the end.
+  // (A typed particle's type must exist in this store.)
+  void set_particle(std::size_t i, const Particle& p);
+  void add_particle(const Particle& p);
+  // Removes particle i by moving the last particle into its place
+  // (std::out_of_range for i >= size()).
+  void swap_remove(std::size_t i);
+
   const std::vector<double>& centre(int k) const { return centre_[k]; }
   const std::vector<double>& q(int k) const { return q_[k]; }
   const std::vector<double>& bounding_radius() const { return bounding_; }
@@ -126,10 +170,11 @@ class ParticleStore {
   const std::vector<double>& sphere_radius() const { return sphere_; }
 
  private:
-  // Stores particle i with the smallest and largest eigenvalues of its Q
-  // (each within a few eps |Q|), rounding the radii to the safe side.
-  void store(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q,
-             double smallest, double largest);
+  // A particle with the smallest and largest eigenvalues of its Q (each
+  // within a few eps |Q|), rounding the radii to the safe side.
+  static Particle untyped_particle(const std::string& who, const std::array<double, 3>& centre,
+                                   const std::array<double, 6>& q, double smallest,
+                                   double largest);
   struct Radii {
     double bounding, inscribed, sphere;
   };
@@ -139,7 +184,7 @@ class ParticleStore {
   void for_each_array(Visit&& visit);  // every per-particle array of doubles
   std::vector<double> centre_[3], q_[6], bounding_, inscribed_, sphere_;
   std::vector<std::uint32_t> type_id_;
-  // Per type: semi-axes, and the radii store() would give its particles.
+  // Per type: semi-axes, and the radii untyped_particle() would give its particles.
   std::vector<std::array<double, 3>> type_axes_;
   std::vector<Radii> type_radii_;
 };

@@ -116,25 +116,31 @@ std::string number_text(double x) {
   return text;
 }
 
-void check_centre(std::size_t i, const std::array<double, 3>& centre) {
+void check_centre(const std::string& who, const std::array<double, 3>& centre) {
   for (double c : centre)
-    if (!std::isfinite(c)) throw std::invalid_argument(particle_name(i) + ": centre is not finite");
+    if (!std::isfinite(c)) throw std::invalid_argument(who + ": centre is not finite");
 }
 
 }  // namespace
 
-void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
-                        const std::array<double, 6>& q) {
-  check_centre(i, centre);
+ParticleStore::Particle ParticleStore::particle(const std::array<double, 3>& centre,
+                                                const std::array<double, 6>& q,
+                                                const std::string& who) {
+  check_centre(who, centre);
   for (double v : q)
-    if (!std::isfinite(v)) throw std::invalid_argument(particle_name(i) + ": Q is not finite");
+    if (!std::isfinite(v)) throw std::invalid_argument(who + ": Q is not finite");
   Eigen::Matrix3d m;
   m << q[0], q[1], q[2], q[1], q[3], q[4], q[2], q[4], q[5];
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m, Eigen::EigenvaluesOnly);
   // The eigenvalues of a symmetric 3x3 matrix computed by Eigen's QR
-  // iteration err by a few eps |Q| (backward stable); store() rounds the
+  // iteration err by a few eps |Q| (backward stable); radii_of() rounds the
   // radii beyond that.
-  store(i, centre, q, solver.eigenvalues()[0], solver.eigenvalues()[2]);
+  return untyped_particle(who, centre, q, solver.eigenvalues()[0], solver.eigenvalues()[2]);
+}
+
+void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
+                        const std::array<double, 6>& q) {
+  set_particle(i, particle(centre, q, particle_name(i)));
 }
 
 namespace {
@@ -163,11 +169,11 @@ QuadraticForm form_of_axes(const std::string& who, const std::array<double, 3>& 
   }
 }
 
-// The smallest and largest eigenvalues store() is given for such a Q, with
+// The smallest and largest eigenvalues untyped_particle() is given for such a Q, with
 // no eigensolver: the stored Q is R diag(a^2) R^T rounded, a few eps a_max^2
 // from the exact form in every entry, so by Weyl's inequality its
 // eigenvalues are within a few eps a_max^2 of the squared semi-axes, which
-// store() rounds beyond.
+// untyped_particle() rounds beyond.
 std::pair<double, double> squared_extremes(const std::array<double, 3>& semi_axes) {
   const auto [smallest, largest] = std::minmax({semi_axes[0], semi_axes[1], semi_axes[2]});
   return {smallest * smallest, largest * largest};
@@ -175,20 +181,27 @@ std::pair<double, double> squared_extremes(const std::array<double, 3>& semi_axe
 
 }  // namespace
 
+ParticleStore::Particle ParticleStore::particle_axes(const std::array<double, 3>& centre,
+                                                     const std::array<double, 3>& semi_axes,
+                                                     const std::array<double, 4>& quaternion,
+                                                     const std::string& who) {
+  check_centre(who, centre);
+  check_semi_axes(who, semi_axes);
+  const auto [smallest, largest] = squared_extremes(semi_axes);
+  return untyped_particle(who, centre, form_of_axes(who, semi_axes, quaternion), smallest, largest);
+}
+
 void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
-  check_centre(i, centre);
-  check_semi_axes(particle_name(i), semi_axes);
-  const auto [smallest, largest] = squared_extremes(semi_axes);
-  store(i, centre, form_of_axes(particle_name(i), semi_axes, quaternion), smallest, largest);
+  set_particle(i, particle_axes(centre, semi_axes, quaternion, particle_name(i)));
 }
 
 std::uint32_t ParticleStore::add_type(const std::array<double, 3>& semi_axes) {
   const std::size_t t = type_axes_.size();
   if (t >= untyped) throw std::invalid_argument("ParticleStore::add_type: too many types");
   check_semi_axes("type " + std::to_string(t), semi_axes);
-  // The radii a particle of this type gets from store() (the same
+  // The radii a particle of this type would get from untyped_particle() (the same
   // arithmetic on the same numbers: the same bits).
   const auto [smallest, largest] = squared_extremes(semi_axes);
   const QuadraticForm q = form_of_axes("type " + std::to_string(t), semi_axes, {1, 0, 0, 0});
@@ -205,20 +218,88 @@ const std::array<double, 3>& ParticleStore::type_semi_axes(std::uint32_t type) c
   return type_axes_[type];
 }
 
+ParticleStore::Particle ParticleStore::particle_typed(const std::array<double, 3>& centre,
+                                                      std::uint32_t type,
+                                                      const std::array<double, 4>& quaternion,
+                                                      const std::string& who) const {
+  check_centre(who, centre);
+  if (type >= type_axes_.size())
+    throw std::invalid_argument(who + ": type " + std::to_string(type) + " does not exist (" +
+                                std::to_string(type_axes_.size()) + " types)");
+  Particle p;
+  p.centre_ = centre;
+  p.q_ = form_of_axes(who, type_axes_[type], quaternion);
+  const Radii& radii = type_radii_[type];
+  p.bounding_ = radii.bounding;
+  p.inscribed_ = radii.inscribed;
+  p.sphere_ = radii.sphere;
+  p.type_ = type;
+  return p;
+}
+
 void ParticleStore::set_typed(std::size_t i, const std::array<double, 3>& centre,
                               std::uint32_t type, const std::array<double, 4>& quaternion) {
-  check_centre(i, centre);
-  if (type >= type_axes_.size())
-    throw std::invalid_argument(particle_name(i) + ": type " + std::to_string(type) +
+  set_particle(i, particle_typed(centre, type, quaternion, particle_name(i)));
+}
+
+ParticleStore::Particle ParticleStore::Particle::moved_to(const std::array<double, 3>& centre) const {
+  check_centre("trial particle", centre);
+  Particle p = *this;
+  p.centre_ = centre;
+  return p;
+}
+
+ParticleStore::Particle ParticleStore::particle_at(std::size_t i) const {
+  if (i >= size())
+    throw std::out_of_range("ParticleStore: " + particle_name(i) + " does not exist (" +
+                            std::to_string(size()) + " particles)");
+  Particle p;
+  for (int k = 0; k < 3; ++k) p.centre_[k] = centre_[k][i];
+  for (int k = 0; k < 6; ++k) p.q_[k] = q_[k][i];
+  p.bounding_ = bounding_[i];
+  p.inscribed_ = inscribed_[i];
+  p.sphere_ = sphere_[i];
+  p.type_ = type_id_[i];
+  return p;
+}
+
+void ParticleStore::set_particle(std::size_t i, const Particle& p) {
+  if (i >= size())
+    throw std::out_of_range("ParticleStore: " + particle_name(i) + " does not exist (" +
+                            std::to_string(size()) + " particles)");
+  if (p.type_ != untyped && p.type_ >= type_axes_.size())
+    throw std::invalid_argument(particle_name(i) + ": type " + std::to_string(p.type_) +
                                 " does not exist (" + std::to_string(type_axes_.size()) + " types)");
-  const QuadraticForm q = form_of_axes(particle_name(i), type_axes_[type], quaternion);
-  for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
-  for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
-  const Radii& radii = type_radii_[type];
-  bounding_[i] = radii.bounding;
-  inscribed_[i] = radii.inscribed;
-  sphere_[i] = radii.sphere;
-  type_id_[i] = type;
+  for (int k = 0; k < 3; ++k) centre_[k][i] = p.centre_[k];
+  for (int k = 0; k < 6; ++k) q_[k][i] = p.q_[k];
+  bounding_[i] = p.bounding_;
+  inscribed_[i] = p.inscribed_;
+  sphere_[i] = p.sphere_;
+  type_id_[i] = p.type_;
+}
+
+void ParticleStore::add_particle(const Particle& p) {
+  const std::size_t i = size();
+  resize(i + 1);
+  try {
+    set_particle(i, p);
+  } catch (...) {
+    resize(i);
+    throw;
+  }
+}
+
+void ParticleStore::swap_remove(std::size_t i) {
+  const std::size_t n = size();
+  if (i >= n)
+    throw std::out_of_range("ParticleStore: " + particle_name(i) + " does not exist (" +
+                            std::to_string(n) + " particles)");
+  for_each_array([i, n](std::vector<double>& v) {
+    v[i] = v[n - 1];
+    v.pop_back();
+  });
+  type_id_[i] = type_id_[n - 1];
+  type_id_.pop_back();
 }
 
 void ParticleStore::add_typed(const std::array<double, 3>& centre, std::uint32_t type,
@@ -248,20 +329,23 @@ ParticleStore::Radii ParticleStore::radii_of(const std::string& who, const std::
           sphere ? std::sqrt(q[0]) : 0};
 }
 
-void ParticleStore::store(std::size_t i, const std::array<double, 3>& centre,
-                          const std::array<double, 6>& q, double smallest, double largest) {
-  const Radii radii = radii_of(particle_name(i), q, smallest, largest);
-  for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
-  for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
-  bounding_[i] = radii.bounding;
-  inscribed_[i] = radii.inscribed;
-  sphere_[i] = radii.sphere;
-  type_id_[i] = untyped;
+ParticleStore::Particle ParticleStore::untyped_particle(const std::string& who,
+                                                        const std::array<double, 3>& centre,
+                                                        const std::array<double, 6>& q,
+                                                        double smallest, double largest) {
+  const Radii radii = radii_of(who, q, smallest, largest);
+  Particle p;
+  p.centre_ = centre;
+  p.q_ = q;
+  p.bounding_ = radii.bounding;
+  p.inscribed_ = radii.inscribed;
+  p.sphere_ = radii.sphere;
+  return p;
 }
 
 void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, double b,
                                 double theta) {
-  check_centre(i, {x, y, 0});
+  check_centre(particle_name(i), {x, y, 0});
   if (!(a > 0) || !std::isfinite(a) || !(b > 0) || !std::isfinite(b))
     throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite, got (" +
                                 number_text(a) + ", " + number_text(b) + ")");
@@ -274,7 +358,8 @@ void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, dou
       a == b ? std::array<double, 6>{a2, 0, 0, a2, 0, a2}
              : std::array<double, 6>{a2 * c * c + b2 * s * s, (a2 - b2) * c * s, 0,
                                      a2 * s * s + b2 * c * c, 0, smallest * smallest};
-  store(i, {x, y, 0}, q, smallest * smallest, std::max(a, b) * std::max(a, b));
+  set_particle(i, untyped_particle(particle_name(i), {x, y, 0}, q, smallest * smallest,
+                                   std::max(a, b) * std::max(a, b)));
 }
 
 void ParticleStore::add_ellipse(double x, double y, double a, double b, double theta) {
