@@ -15,6 +15,7 @@
 #include <string>
 
 #include "kernels/kernel_api.hpp"
+#include "pair_overlap_solver.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/batch.hpp"
 #include "pwcontact/reference.hpp"
@@ -349,10 +350,10 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
   return report;
 }
 
+// Overlap answers: the options and cutoff checked, the settings resolved.
 template <class T>
-BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& out,
-                         const BatchOptions& options, double cutoff) {
-  BatchReport report = resolve<T>(options, pairs.size);
+kernels::ChunkSettings overlap_settings(const BatchReport& report, const BatchOptions& options,
+                                        double cutoff) {
   if (!(cutoff > 0) || !std::isfinite(cutoff))
     throw std::invalid_argument("overlap_batch: cutoff must be positive and finite, got " +
                                 std::to_string(cutoff));
@@ -366,35 +367,98 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   }
   if (options.accuracy == Accuracy::high)
     throw std::invalid_argument("overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");
+  kernels::ChunkSettings settings = chunk_settings(report, options);
+  settings.cutoff_mu2 = cutoff * cutoff;
+  return settings;
+}
+
+// Pair i that the overlap kernels left, answered by the reference path;
+// whether it counts as a fallback.
+template <class T>
+bool answer_overlap_with_reference(const PairBatchView<T>& pairs, const OverlapOutputs& out,
+                                   std::size_t i, double cutoff_mu2) {
+  const ScalarPair p = scalar_pair(pairs, i);
+  const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+  // A mu^2 out of range (infinite, or below the smallest normal number)
+  // still decides the overlap exactly.
+  const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;
+  out.overlap[i] = solved && ref.mu2 < cutoff_mu2;
+  out.status[i] = solved ? Status::ok_fallback : ref.status;
+  return solved || ref.status == Status::not_converged;
+}
+
+template <class T>
+BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& out,
+                         const BatchOptions& options, double cutoff) {
+  BatchReport report = resolve<T>(options, pairs.size);
+  const kernels::ChunkSettings settings = overlap_settings<T>(report, options, cutoff);
   if (pairs.size == 0) return report;
   check_pairs(pairs);
   if (!out.overlap) throw std::invalid_argument("OverlapOutputs::overlap must not be null");
-  kernels::ChunkSettings settings = chunk_settings(report, options);
-  settings.cutoff_mu2 = cutoff * cutoff;
   const auto kernel = overlap_kernel<T>(kernel_table(report.isa), report.precision);
 
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
-  Status* const status = out.status ? out.status : scratch_status.data();
+  const OverlapOutputs all{out.overlap, out.status ? out.status : scratch_status.data()};
   run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
                                      kernels::ChunkCounters& counters, ChunkTally& tally) {
-    kernel(span_at(pairs, begin), {out.overlap + begin, status + begin}, n, settings, scratch,
+    kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings, scratch,
            counters);
-    answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
-      const ScalarPair p = scalar_pair(pairs, i);
-      const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
-      // A mu^2 out of range (infinite, or below the smallest normal number)
-      // still decides the overlap exactly.
-      const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;
-      out.overlap[i] = solved && ref.mu2 < settings.cutoff_mu2;
-      status[i] = solved ? Status::ok_fallback : ref.status;
-      tally.fallbacks += solved || ref.status == Status::not_converged;
+    answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
+      tally.fallbacks += answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
     });
-    tally.overlapping += count_ones(out.overlap + begin, n);
+    tally.overlapping += count_ones(all.overlap + begin, n);
   });
   return report;
 }
 
 }  // namespace
+
+namespace detail {
+
+struct PairOverlapSolver::State {
+  kernels::ChunkSettings settings;
+  kernels::OverlapKernel<double> kernel;
+  std::size_t capacity;
+  std::unique_ptr<unsigned char[]> storage;
+  kernels::Scratch scratch;
+};
+
+PairOverlapSolver::PairOverlapSolver(const BatchOptions& options, double cutoff,
+                                     std::size_t capacity)
+    : state_(new State) {
+  const BatchReport report = resolve<double>(options, capacity);
+  state_->settings = overlap_settings<double>(report, options, cutoff);
+  state_->kernel = overlap_kernel<double>(kernel_table(report.isa), report.precision);
+  state_->capacity = capacity;
+  const std::size_t bytes = kernels::scratch_bytes(capacity);
+  state_->storage.reset(new unsigned char[bytes + 64]);
+  unsigned char* base = state_->storage.get();
+  base += (64 - reinterpret_cast<std::uintptr_t>(base) % 64) % 64;
+  state_->scratch = {base, capacity};
+}
+
+PairOverlapSolver::~PairOverlapSolver() = default;
+PairOverlapSolver::PairOverlapSolver(PairOverlapSolver&&) noexcept = default;
+PairOverlapSolver& PairOverlapSolver::operator=(PairOverlapSolver&&) noexcept = default;
+
+std::size_t PairOverlapSolver::capacity() const noexcept { return state_->capacity; }
+
+void PairOverlapSolver::solve(const PairBatchView<double>& pairs, std::uint8_t* overlap,
+                              Status* status) {
+  if (pairs.size > state_->capacity)
+    throw std::invalid_argument("PairOverlapSolver: " + std::to_string(pairs.size) +
+                                " pairs for a capacity of " + std::to_string(state_->capacity));
+  if (pairs.size == 0) return;
+  kernels::ChunkCounters counters;
+  state_->kernel(span_at(pairs, 0), {overlap, status}, pairs.size, state_->settings,
+                 state_->scratch, counters);
+  const OverlapOutputs out{overlap, status};
+  for (std::size_t i = 0; i < pairs.size; ++i)
+    if (status[i] == kernels::needs_fallback)
+      answer_overlap_with_reference(pairs, out, i, state_->settings.cutoff_mu2);
+}
+
+}  // namespace detail
 
 BatchReport contact_function_batch(const PairBatchView<double>& pairs,
                                    const ContactOutputs<double>& out, const BatchOptions& options) {

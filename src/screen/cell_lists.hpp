@@ -222,7 +222,7 @@ struct Candidate {
   double r[3];
 };
 
-// The cells of `grid` within span cells of a position's cell along one axis,
+// The cells of `grid` within `span` cells of a position's cell along one axis,
 // as at most two runs of consecutive cells, each with the shift (-1, 0 or 1
 // box lengths) that takes a member's wrapped position to its image nearest
 // the position (periodic wrap-around). Where a periodic grid has fewer than
@@ -235,9 +235,10 @@ struct CellRuns {
   bool nearest_image = false;
 };
 
-inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double u) {
+inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double u,
+                               int span) {
   CellRuns runs;
-  const int n = grid.cells[k], span = grid.span;
+  const int n = grid.cells[k];
   const int centre = lists.cell_of(grid, k, u);
   auto add = [&](int first, int last, int shift) {
     runs.first[runs.count] = first;
@@ -305,9 +306,9 @@ void search_candidates(const CellLists& lists, int threads,
         // Classes of radii at least as large as i's (indices 0 .. own).
         for (std::size_t g = 0; g <= own; ++g) {
           const ClassGrid& grid = lists.grids[g];
-          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0]),
-                                    neighbour_runs(lists, grid, 1, u_i[1]),
-                                    neighbour_runs(lists, grid, 2, u_i[2])};
+          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0], grid.span),
+                                    neighbour_runs(lists, grid, 1, u_i[1], grid.span),
+                                    neighbour_runs(lists, grid, 2, u_i[2], grid.span)};
           const bool nearest_image =
               runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
           // The members of one run of cells along z: contiguous.

@@ -16,8 +16,10 @@
 #include "pwcontact/reference.hpp"
 #include "pwcontact/screen.hpp"
 #include "screen/cell_lists.hpp"
+#include "screen/pair_prefilters.hpp"
 
 namespace pwcontact {
+using screen::Side;
 namespace {
 
 // A pair the prefilters left: its indices i < j, r12 = c_j - c_i (minimum
@@ -103,14 +105,6 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
   t.seconds_solve += omp_get_wtime() - compacted;
 }
 
-// One side of a candidate pair: its particle index, radii and form (six
-// contiguous numbers).
-struct Side {
-  std::uint32_t index;
-  double bounding, inscribed, sphere;
-  const double* q;
-};
-
 // The first prefilter: apart when the bounding spheres scaled by the cutoff
 // do not meet (most candidates: kept to a few operations, before anything
 // else about the pair is loaded; the cell search has already dropped the
@@ -123,44 +117,9 @@ inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double r
   return true;
 }
 
-// Whether two particles have the same form Q (the same shape and
-// orientation) that is well enough conditioned for the closed form below:
-// bounding over inscribed radius at most 100, so cond(Q) <= 1e4 and
-// r^T Q^-1 r by L D L^T within 1e4 * a few eps (1e-11) relatively.
-inline bool same_moderate_form(const Side& p, const Side& o) {
-  for (int k = 0; k < 6; ++k)
-    if (p.q[k] != o.q[k]) return false;
-  return p.bounding <= 100 * p.inscribed;
-}
-
-// r^T Q r for the form q (eq. 3's six numbers).
-inline double form_value(const double q[6], const double r[3]) {
-  double qr[3];
-  detail::symmetric_times(q, r, qr);
-  return detail::dot3(r, qr);
-}
-
-// Apart when the projections of the two ellipsoids scaled by the cutoff on
-// the line of centres do not overlap (a separating plane normal to r): the
-// support of ellipsoid Q in the direction r / |r| is sqrt(r^T Q r) / |r|, so
-// |r| >= cutoff (h_p + h_o) reads rr >= cutoff (sqrt(r^T Q_p r) +
-// sqrt(r^T Q_o r)). Tighter than the bounding spheres for elongated shapes.
-// r^T Q r, a sum of nine products, errs by at most about 6 eps times the sum
-// of their magnitudes, and |q_ij| <= max q_ii <= R^2 makes that sum at most
-// 3 R^2 rr: 18 eps R^2 rr in the worst case. 64 eps R^2 rr is added before
-// the square roots, so the test stays on the safe side.
-inline bool apart_by_projections(const Side& p, const Side& o, const double r[3], double rr,
-                                 double cutoff) {
-  constexpr double eps = std::numeric_limits<double>::epsilon();
-  const double sp = form_value(p.q, r) + 64 * eps * p.bounding * p.bounding * rr;
-  const double so = form_value(o.q, r) + 64 * eps * o.bounding * o.bounding * rr;
-  // Coincident centres (rr = 0, both sides 0) are the most overlapping pair.
-  return rr > 0 && rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
-}
-
-// The pair (p, o) with r = c_o - c_p that the bounding spheres left: pairs of
-// spheres, and pairs of one form, in closed form; overlapping by the
-// inscribed spheres; the rest waits for the next chunk's solve.
+// The pair (p, o) with r = c_o - c_p that the bounding spheres left: what
+// the prefilters decide is counted and kept; the rest waits for the next
+// chunk's solve.
 inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, const Side& p,
                                const Side& o, const double r[3], double rr) {
   const double cutoff = options.cutoff;
@@ -172,31 +131,25 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
       if (options.with_mu2) mine.found_mu2.push_back(mu2);
     }
   };
-  if (p.sphere > 0 && o.sphere > 0) {
-    // Two spheres: mu = |r| / (a_i + a_j) (Q(lambda) is then a multiple of
-    // I), to a few roundings.
-    const double sum = p.sphere + o.sphere;
-    ++mine.spheres;
-    decide(rr / (sum * sum));
-    return;
-  }
-  if (same_moderate_form(p, o)) {
-    // Q1 = Q2 = Q: Q(lambda) = Q in eq. (10), so f(lambda) = lambda (1 -
-    // lambda) r^T Q^-1 r by eq. (11), largest at lambda = 1/2 (eq. 6). A scene
-    // of identical, aligned ellipsoids is an affine image of one of spheres.
-    ++mine.same_form;
-    decide(detail::inverse_quadratic_form(detail::Ldlt3<double>(p.q), r) / 4);
-    return;
-  }
-  const double inner = cutoff * (p.inscribed + o.inscribed);
-  if (!options.with_mu2 && rr < inner * inner) {
-    mine.found.push_back(pair_key(a, b));
-    ++mine.in;
-    return;
-  }
-  if (apart_by_projections(p, o, r, rr, cutoff)) {
-    ++mine.out_by_projection;
-    return;
+  double mu2 = 0;
+  switch (screen::decide_near_pair(p, o, r, rr, cutoff, options.with_mu2, mu2)) {
+    case screen::NearPair::spheres:
+      ++mine.spheres;
+      decide(mu2);
+      return;
+    case screen::NearPair::same_form:
+      ++mine.same_form;
+      decide(mu2);
+      return;
+    case screen::NearPair::in:
+      mine.found.push_back(pair_key(a, b));
+      ++mine.in;
+      return;
+    case screen::NearPair::out_by_projection:
+      ++mine.out_by_projection;
+      return;
+    case screen::NearPair::undecided:
+      break;
   }
   // r12 from the lower index to the higher: the pair as (a, b).
   const double sign = p_first ? 1 : -1;

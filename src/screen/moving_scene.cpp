@@ -1,0 +1,758 @@
+// The moving scene (scene.hpp): one uniform grid in the screening's cell
+// space, each cell with a fixed number of slots, so that a move rewrites a
+// slot in place or takes one slot out of a cell and puts it into another.
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "pair_overlap_solver.hpp"
+#include "parallel_errors.hpp"
+#include "pwcontact/moving_scene.hpp"
+#include "screen/cell_lists.hpp"
+#include "screen/pair_prefilters.hpp"
+
+namespace pwcontact {
+namespace {
+
+// What the coarse test reads of a member, in one half cache line: its centre
+// wrapped into the box (as given along open axes) and its bounding radius.
+struct Slot {
+  double position[3];
+  double bounding;
+};
+
+// Undecided pairs of a single query solved together: a few SIMD blocks, so
+// that a query that meets an overlap early stops early.
+constexpr std::size_t pairs_per_solve = 16;
+
+// Pairs of a batch of trials solved together (one thread's share at a time).
+constexpr std::size_t batch_solve_pairs = 1024;
+
+std::string particle_name(std::size_t i) { return "particle " + std::to_string(i); }
+
+// Open axes: beyond this many particles outside the region the grid covers
+// (in its outer cells), the grid is rebuilt over the particles' new extent.
+std::size_t outside_limit(std::size_t n) { return n / 4 + 64; }
+
+// A trial or stored particle as the prefilters take it.
+struct Sided {
+  double q[6];
+  screen::Side side;
+};
+
+}  // namespace
+
+struct MovingScene::Impl {
+  ParticleStore store;
+  Box box;
+  MovingSceneOptions options;
+  screen::CellLists lists;  // the geometry, origin and slack; grids[0]: the cells (no members)
+  double grid_radius = 0;   // the bounding radius the cells are sized for
+  double side = 0;          // the narrowest cell, in cell space
+  std::size_t capacity = 0;  // slots per cell
+  std::vector<Slot> slots;                  // cells * capacity
+  std::vector<std::uint32_t> members;       // cells * capacity: particle indices
+  std::vector<std::uint32_t> count;         // per cell
+  std::vector<std::uint64_t> where;         // per particle: cell * capacity + slot
+  std::vector<std::uint8_t> outside;        // per particle (open axes): beyond the grid's region
+  std::size_t outside_count = 0;
+  MovingSceneCounters counters;
+  std::vector<std::uint32_t> stamp;  // per cell, for move_many's test of distinct cells
+  std::uint32_t generation = 0;
+  BatchOptions solve_options;  // resolved once
+
+  const screen::ClassGrid& grid() const { return lists.grids[0]; }
+  std::size_t cells() const { return count.size(); }
+
+  // The cell of a centre as given, and whether it lies in the region the
+  // cells cover (always, along periodic axes).
+  std::uint32_t cell_of(const std::array<double, 3>& centre, bool* inside = nullptr) const {
+    double u[3];
+    lists.cell_space_of_centre(centre.data(), u);
+    const screen::ClassGrid& g = grid();
+    int c[3];
+    bool in = true;
+    for (int k = 0; k < 3; ++k) {
+      c[k] = lists.cell_of(g, k, u[k]);
+      if (!lists.geometry.periodic[k])
+        in = in && u[k] >= 0 && u[k] * g.inverse_side[k] < double(g.cells[k]);
+    }
+    if (inside) *inside = in;
+    return std::uint32_t((std::size_t(c[0]) * std::size_t(g.cells[1]) + std::size_t(c[1])) *
+                             std::size_t(g.cells[2]) +
+                         std::size_t(c[2]));
+  }
+
+  // Periodic boxes: the reach of two particles of bounding radius `radius`
+  // at the largest cutoff must fit twice across the box.
+  void check_box(double radius, double cutoff, const char* who) const {
+    if (!box.periodic) return;
+    const double reach = cutoff * 2 * radius;
+    const std::array<double, 3> widths = box.perpendicular_widths();
+    for (int k = 0; k < 3; ++k)
+      if (box.periodic_along(k) && !(2 * reach <= widths[k]))
+        throw std::invalid_argument(
+            std::string(who) + ": the periodic box is too small: its width " +
+            std::to_string(widths[k]) + " across axis " + std::to_string(k) +
+            " is less than twice the reach cutoff * 2 R = " + std::to_string(reach) +
+            " (cutoff " + std::to_string(cutoff) + ", bounding radius " + std::to_string(radius) +
+            "; the minimum image convention would miss pairs)");
+  }
+
+  void write_slot(std::uint64_t at, std::size_t i) {
+    Slot& s = slots[at];
+    const double x[3] = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
+    lists.geometry.wrap(x, s.position);
+    s.bounding = store.bounding_radius()[i];
+    members[at] = std::uint32_t(i);
+    where[i] = at;
+  }
+
+  void set_outside(std::size_t i, bool out) {
+    if (bool(outside[i]) == out) return;
+    outside[i] = out;
+    if (out)
+      ++outside_count;
+    else
+      --outside_count;
+  }
+
+  // Takes particle i's slot out of its cell (the cell's last slot fills it).
+  void vacate(std::size_t i) {
+    const std::uint64_t at = where[i];
+    const std::size_t cell = std::size_t(at / capacity);
+    const std::uint64_t last = cell * capacity + (count[cell] - 1);
+    if (at != last) {
+      slots[at] = slots[last];
+      members[at] = members[last];
+      where[members[at]] = at;
+    }
+    --count[cell];
+  }
+
+  // Puts particle i into `cell`, which has a free slot.
+  void occupy(std::size_t i, std::size_t cell) {
+    write_slot(cell * capacity + count[cell], i);
+    ++count[cell];
+  }
+
+  // The grid sized for every particle (and for at least `radius`), every
+  // particle placed.
+  void rebuild(double radius) {
+    const std::size_t n = store.size();
+    const std::vector<double>& bounding = store.bounding_radius();
+    for (std::size_t i = 0; i < n; ++i) radius = std::max(radius, bounding[i]);
+    if (!(radius > 0)) radius = 1;  // an empty scene: any size
+    grid_radius = radius;
+    const double cutoff = options.max_cutoff;
+    lists = screen::CellLists();
+    lists.box = box;
+    lists.geometry = screen::BoxGeometry(box);
+    const screen::BoxGeometry& geometry = lists.geometry;
+    std::array<double, 3> low{}, high{};
+    for (int k = 0; k < 3; ++k) {
+      if (geometry.periodic[k]) continue;
+      double lo = 0, hi = 0;
+      if (n > 0) {
+        lo = hi = store.centre(k)[0];
+        for (std::size_t i = 1; i < n; ++i) {
+          lo = std::min(lo, store.centre(k)[i]);
+          hi = std::max(hi, store.centre(k)[i]);
+        }
+      }
+      // Centres whose differences overflow (beyond +-1e308): the grid then
+      // covers the origin only along this axis, its outer cells take the
+      // rest (correct, and as slow as such a scene deserves).
+      if (!std::isfinite(hi - lo)) lo = hi = 0;
+      low[k] = lo;
+      high[k] = hi;
+    }
+    // The slack of the cells' rounding, as the screening's (cell_lists.cpp).
+    double scale = 2 * cutoff * radius;
+    for (int k = 0; k < 3; ++k)
+      scale = geometry.periodic[k]
+                  ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
+                                        std::abs(geometry.h[k][2]))
+                  : std::max({scale, std::abs(low[k]), std::abs(high[k])});
+    lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
+    lists.largest_reach = cutoff * radius;
+    // Open axes: the region covered reaches a cell beyond the particles on
+    // each side, for the ones that move a little.
+    side = 2 * cutoff * radius + 4 * lists.slack;
+    for (int k = 0; k < 3; ++k) lists.origin[k] = geometry.periodic[k] ? 0 : low[k] - side;
+    screen::ClassGrid g;
+    g.span = 1;
+    double cell_side = side;
+    const double limit = std::max(64.0, 2.0 * double(n));
+    for (;;) {
+      double total = 1;
+      for (int k = 0; k < 3; ++k) {
+        const bool periodic = geometry.periodic[k];
+        const double extent = periodic ? geometry.width[k] : high[k] - low[k] + 2 * side;
+        double c = periodic ? std::max(1.0, std::floor(extent / cell_side))
+                            : std::floor(extent / cell_side) + 1;
+        if (!(c <= 1e6)) c = 1e6;
+        g.cells[k] = int(c);
+        g.inverse_side[k] = periodic ? g.cells[k] / extent : 1 / cell_side;
+        total *= g.cells[k];
+      }
+      if (total <= limit) break;
+      cell_side *= std::cbrt(total / limit) * 1.01;
+    }
+    side = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) side = std::min(side, 1 / g.inverse_side[k]);
+    lists.grids.assign(1, std::move(g));
+
+    const std::size_t cell_total =
+        std::size_t(grid().cells[0]) * std::size_t(grid().cells[1]) * std::size_t(grid().cells[2]);
+    std::vector<std::uint32_t> cell(n);
+    std::vector<std::uint32_t> occupancy(cell_total, 0);
+    outside.assign(n, 0);
+    outside_count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      bool inside = true;
+      cell[i] = cell_of({store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]}, &inside);
+      ++occupancy[cell[i]];
+      set_outside(i, !inside);
+    }
+    const std::uint32_t fullest =
+        cell_total ? *std::max_element(occupancy.begin(), occupancy.end()) : 0;
+    // Room for the cells to fill up by half before the next rebuild.
+    capacity = std::max<std::size_t>({8, fullest + fullest / 2 + 2, capacity});
+    count.assign(cell_total, 0);
+    slots.assign(cell_total * capacity, Slot{});
+    members.assign(cell_total * capacity, 0);
+    where.assign(n, 0);
+    for (std::size_t i = 0; i < n; ++i) occupy(i, cell[i]);
+    stamp.assign(cell_total, 0);
+    generation = 0;
+    ++counters.rebuilds;
+  }
+
+  // Particle i (already stored) into its cell; a rebuild when the cells are
+  // too small for it or its cell is full, or when too many particles have
+  // left an open box's region.
+  void place(std::size_t i, bool fresh) {
+    bool inside = true;
+    const std::size_t cell =
+        cell_of({store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]}, &inside);
+    const bool too_large = store.bounding_radius()[i] > grid_radius;
+    if (!fresh) {
+      const std::size_t old_cell = std::size_t(where[i] / capacity);
+      if (!too_large && old_cell == cell) {
+        write_slot(where[i], i);
+        set_outside(i, !inside);
+        return;
+      }
+      vacate(i);
+    }
+    set_outside(i, !inside);
+    if (too_large || count[cell] == capacity || outside_count > outside_limit(store.size())) {
+      if (count[cell] == capacity) capacity *= 2;
+      rebuild(store.bounding_radius()[i]);
+      return;
+    }
+    occupy(i, cell);
+    if (!fresh) ++counters.cell_changes;
+  }
+
+  void check_index(std::size_t i, const char* who) const {
+    if (i >= store.size())
+      throw std::out_of_range(std::string(who) + ": " + particle_name(i) + " does not exist (" +
+                              std::to_string(store.size()) + " particles)");
+  }
+
+  void check_particle(const Particle& p, const char* who) const {
+    if (p.type() != ParticleStore::untyped && p.type() >= store.types())
+      throw std::invalid_argument(std::string(who) + ": type " + std::to_string(p.type()) +
+                                  " does not exist (" + std::to_string(store.types()) + " types)");
+    check_box(p.bounding_radius(), options.max_cutoff, who);
+  }
+
+  // ---------------------------------------------------------------------
+  // Queries
+
+  // Every stored particle but `exclude` whose bounding sphere meets the
+  // trial's at this cutoff, in the scene's search order (cells by their
+  // runs, slots in order): visit(index, r, rr) with r = c_index - c_trial
+  // by the minimum image; a false return stops the search.
+  template <class Visit>
+  void for_each_near(const Particle& trial, double cutoff, std::int64_t exclude,
+                     Visit&& visit) const {
+    if (store.size() == 0) return;
+    const screen::BoxGeometry& geometry = lists.geometry;
+    double w[3], u[3];
+    geometry.wrap(trial.centre().data(), w);
+    lists.cell_space(w, u);
+    const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
+    const int span = std::max(1, int(std::ceil(reach / side)));
+    const screen::ClassGrid& g = grid();
+    const screen::CellRuns runs[3] = {screen::neighbour_runs(lists, g, 0, u[0], span),
+                                      screen::neighbour_runs(lists, g, 1, u[1], span),
+                                      screen::neighbour_runs(lists, g, 2, u[2], span)};
+    const bool nearest_image =
+        runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
+    const double trial_reach = cutoff * trial.bounding_radius();
+    const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
+    for (int ra = 0; ra < runs[0].count; ++ra)
+      for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
+        for (int rb = 0; rb < runs[1].count; ++rb)
+          for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b)
+            for (int rc = 0; rc < runs[2].count; ++rc) {
+              const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb], runs[2].shift[rc]};
+              double image[3];
+              geometry.shift_vector(shift, image);
+              double origin[3];  // the trial seen from the members' images
+              for (int k = 0; k < 3; ++k) origin[k] = w[k] - image[k];
+              for (int c = runs[2].first[rc]; c <= runs[2].last[rc]; ++c) {
+                const std::size_t cell = (std::size_t(a) * ny + std::size_t(b)) * nz + std::size_t(c);
+                const Slot* s = slots.data() + cell * capacity;
+                const std::uint32_t* m = members.data() + cell * capacity;
+                for (std::uint32_t k = 0, end = count[cell]; k < end; ++k) {
+                  double r[3] = {s[k].position[0] - origin[0], s[k].position[1] - origin[1],
+                                 s[k].position[2] - origin[2]};
+                  if (nearest_image) geometry.minimum_image(r);
+                  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                  const double limit = trial_reach + cutoff * s[k].bounding;
+                  if (rr >= limit * limit || std::int64_t(m[k]) == exclude) continue;
+                  if (!visit(m[k], r, rr)) return;
+                }
+              }
+            }
+  }
+
+  Sided sided(std::size_t i) const {
+    Sided s;
+    for (int k = 0; k < 6; ++k) s.q[k] = store.q(k)[i];
+    s.side = {std::uint32_t(i), store.bounding_radius()[i], store.inscribed_radius()[i],
+              store.sphere_radius()[i], nullptr};
+    return s;
+  }
+};
+
+namespace {
+
+// The trial side of a pair (its form copied: six contiguous numbers).
+Sided trial_side(const ParticleStore::Particle& t) {
+  Sided s;
+  for (int k = 0; k < 6; ++k) s.q[k] = t.q()[k];
+  s.side = {0, t.bounding_radius(), t.inscribed_radius(), t.sphere_radius(), nullptr};
+  return s;
+}
+
+// Undecided pairs waiting for the overlap kernels, in search order, with
+// the trial they belong to.
+struct Pending {
+  PairBatch<double> batch;
+  std::vector<std::uint32_t> index, trial;
+  std::vector<std::uint8_t> overlap;
+  std::vector<Status> status;
+
+  explicit Pending(std::size_t capacity) {
+    batch.reserve(capacity);
+    index.reserve(capacity);
+    trial.reserve(capacity);
+  }
+  std::size_t size() const { return index.size(); }
+  void add(std::uint32_t t, std::uint32_t i, const double r[3], const double* q_trial,
+           const double* q_member) {
+    batch.push_back(r, q_trial, q_member);
+    index.push_back(i);
+    trial.push_back(t);
+  }
+  void clear() {
+    batch.resize(0);
+    index.clear();
+    trial.clear();
+  }
+  // The overlap answers; a pair that the solver cannot answer is an error,
+  // never a silent "apart".
+  void solve(detail::PairOverlapSolver& solver) {
+    overlap.resize(size());
+    status.resize(size());
+    const PairBatchView<double> all = batch.view();
+    for (std::size_t begin = 0; begin < size(); begin += solver.capacity()) {
+      PairBatchView<double> part = all;
+      part.size = std::min(solver.capacity(), size() - begin);
+      for (auto& p : part.r12) p += begin;
+      for (auto& p : part.q1) p += begin;
+      for (auto& p : part.q2) p += begin;
+      solver.solve(part, overlap.data() + begin, status.data() + begin);
+    }
+    for (std::size_t k = 0; k < size(); ++k)
+      if (!is_valid(status[k]))
+        throw std::runtime_error("MovingScene: the overlap of a trial particle with particle " +
+                                 std::to_string(index[k]) + " has no answer (" +
+                                 status_name(status[k]) + ")");
+  }
+};
+
+// Per thread: an overlap solver for the scene's options.
+detail::PairOverlapSolver& thread_solver(const BatchOptions& options, std::size_t capacity) {
+  struct Cached {
+    BatchOptions options;
+    std::size_t capacity = 0;
+    std::unique_ptr<detail::PairOverlapSolver> solver;
+  };
+  thread_local Cached cached;
+  const BatchOptions& o = cached.options;
+  if (!cached.solver || cached.capacity < capacity || o.isa != options.isa ||
+      o.precision != options.precision || o.formulation != options.formulation ||
+      o.iterations != options.iterations) {
+    cached.solver = std::make_unique<detail::PairOverlapSolver>(options, 1.0, capacity);
+    cached.options = options;
+    cached.capacity = capacity;
+  }
+  return *cached.solver;
+}
+
+}  // namespace
+
+MovingScene::MovingScene(ParticleStore particles, const Box& box, const MovingSceneOptions& options)
+    : impl_(new Impl) {
+  if (!(options.max_cutoff >= 1) || !std::isfinite(options.max_cutoff))
+    throw std::invalid_argument("MovingScene: max_cutoff must be at least 1 and finite, got " +
+                                std::to_string(options.max_cutoff));
+  if (particles.size() >= (std::size_t(1) << 31))
+    throw std::invalid_argument("MovingScene: at most 2^31 - 1 particles");
+  impl_->store = std::move(particles);
+  impl_->box = box;
+  impl_->options = options;
+  impl_->solve_options = options.batch;
+  impl_->solve_options.isa = resolve_isa(options.batch.isa);
+  impl_->solve_options.accuracy = Accuracy::standard;
+  impl_->solve_options.threads = 1;
+  // The options checked once, as overlap_batch checks them.
+  detail::PairOverlapSolver check(impl_->solve_options, 1.0, 1);
+  const std::vector<double>& bounding = impl_->store.bounding_radius();
+  const double largest = bounding.empty() ? 0 : *std::max_element(bounding.begin(), bounding.end());
+  impl_->check_box(largest, options.max_cutoff, "MovingScene");
+  impl_->rebuild(0);
+}
+
+MovingScene::~MovingScene() = default;
+MovingScene::MovingScene(MovingScene&&) noexcept = default;
+MovingScene& MovingScene::operator=(MovingScene&&) noexcept = default;
+
+std::size_t MovingScene::size() const noexcept { return impl_->store.size(); }
+const ParticleStore& MovingScene::particles() const noexcept { return impl_->store; }
+const Box& MovingScene::box() const noexcept { return impl_->box; }
+const MovingSceneCounters& MovingScene::counters() const noexcept { return impl_->counters; }
+
+MovingScene::Particle MovingScene::trial(const std::array<double, 3>& centre,
+                             const std::array<double, 6>& q) const {
+  return ParticleStore::particle(centre, q);
+}
+MovingScene::Particle MovingScene::trial_axes(const std::array<double, 3>& centre,
+                                  const std::array<double, 3>& semi_axes,
+                                  const std::array<double, 4>& quaternion) const {
+  return ParticleStore::particle_axes(centre, semi_axes, quaternion);
+}
+MovingScene::Particle MovingScene::trial_typed(const std::array<double, 3>& centre, std::uint32_t type,
+                                   const std::array<double, 4>& quaternion) const {
+  return impl_->store.particle_typed(centre, type, quaternion);
+}
+
+std::uint32_t MovingScene::insert(const Particle& p) {
+  Impl& s = *impl_;
+  const std::size_t i = s.store.size();
+  if (i + 1 >= (std::size_t(1) << 31)) throw std::invalid_argument("MovingScene::insert: at most 2^31 - 1 particles");
+  s.check_particle(p, "MovingScene::insert");
+  s.store.add_particle(p);
+  s.where.push_back(0);
+  s.outside.push_back(0);
+  s.place(i, true);
+  ++s.counters.inserts;
+  return std::uint32_t(i);
+}
+
+std::uint32_t MovingScene::remove(std::size_t i) {
+  Impl& s = *impl_;
+  s.check_index(i, "MovingScene::remove");
+  const std::size_t last = s.store.size() - 1;
+  s.vacate(i);
+  s.set_outside(i, false);
+  if (i != last) {
+    s.where[i] = s.where[last];
+    s.members[s.where[i]] = std::uint32_t(i);
+    s.outside[i] = s.outside[last];
+  }
+  s.where.pop_back();
+  s.outside.pop_back();
+  s.store.swap_remove(i);
+  ++s.counters.removes;
+  return std::uint32_t(last);
+}
+
+void MovingScene::move(std::size_t i, const Particle& p) {
+  Impl& s = *impl_;
+  s.check_index(i, "MovingScene::move");
+  s.check_particle(p, "MovingScene::move");
+  s.store.set_particle(i, p);
+  s.place(i, false);
+  ++s.counters.moves;
+}
+
+void MovingScene::move_many(const std::uint32_t* index, const Particle* particles, std::size_t count,
+                      int threads) {
+  Impl& s = *impl_;
+  for (std::size_t k = 0; k < count; ++k) {
+    s.check_index(index[k], "MovingScene::move_many");
+    s.check_particle(particles[k], "MovingScene::move_many");
+  }
+  // Parallel only when every move keeps to cells no other move touches,
+  // needs no rebuild, and finds room in its new cell.
+  if (++s.generation == 0) {
+    std::fill(s.stamp.begin(), s.stamp.end(), 0);
+    s.generation = 1;
+  }
+  bool independent = threads != 1 && count > 1;
+  std::vector<std::uint32_t> new_cell(independent ? count : 0);
+  for (std::size_t k = 0; k < count && independent; ++k) {
+    const std::size_t i = index[k];
+    const std::uint32_t from = std::uint32_t(s.where[i] / s.capacity);
+    const std::uint32_t to = s.cell_of(particles[k].centre());
+    new_cell[k] = to;
+    independent = particles[k].bounding_radius() <= s.grid_radius &&
+                  (to == from || s.count[to] < s.capacity) && s.stamp[from] != s.generation;
+    s.stamp[from] = s.generation;
+    if (to != from) {
+      independent = independent && s.stamp[to] != s.generation;
+      s.stamp[to] = s.generation;
+    }
+  }
+  if (!independent) {
+    for (std::size_t k = 0; k < count; ++k) move(index[k], particles[k]);
+    return;
+  }
+  std::size_t changes = 0;
+  std::ptrdiff_t outside_change = 0;
+#pragma omp parallel for num_threads(threads > 0 ? threads : omp_get_max_threads()) \
+    reduction(+ : changes, outside_change) schedule(static)
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t i = index[k];
+    s.store.set_particle(i, particles[k]);  // (cannot throw: checked above)
+    bool inside = true;
+    s.cell_of(particles[k].centre(), &inside);
+    outside_change += std::ptrdiff_t(!inside) - std::ptrdiff_t(s.outside[i]);
+    s.outside[i] = !inside;
+    const std::size_t from = std::size_t(s.where[i] / s.capacity);
+    if (from == new_cell[k]) {
+      s.write_slot(s.where[i], i);
+    } else {
+      s.vacate(i);
+      s.occupy(i, new_cell[k]);
+      ++changes;
+    }
+  }
+  s.outside_count = std::size_t(std::ptrdiff_t(s.outside_count) + outside_change);
+  s.counters.cell_changes += changes;
+  s.counters.moves += count;
+  if (s.outside_count > outside_limit(s.store.size())) s.rebuild(0);
+}
+
+std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
+  const Impl& s = *impl_;
+  detail::PairOverlapSolver& solver = thread_solver(s.solve_options, pairs_per_solve);
+  thread_local Pending pending(pairs_per_solve);
+  pending.clear();
+  const Sided t = trial_side(trial);
+  screen::Side ts = t.side;
+  ts.q = t.q;
+  std::int64_t found = none;
+  // The earliest overlapping pair among those waiting, if any.
+  auto solve_waiting = [&]() -> bool {
+    if (pending.size() == 0) return false;
+    pending.solve(solver);
+    for (std::size_t k = 0; k < pending.size(); ++k)
+      if (pending.overlap[k]) {
+        found = pending.index[k];
+        return true;
+      }
+    pending.clear();
+    return false;
+  };
+  s.for_each_near(trial, 1.0, exclude, [&](std::uint32_t i, const double r[3], double rr) {
+    Sided m = s.sided(i);
+    m.side.q = m.q;
+    double mu2 = 0;
+    switch (screen::decide_near_pair(ts, m.side, r, rr, 1.0, false, mu2)) {
+      case screen::NearPair::spheres:
+      case screen::NearPair::same_form:
+        if (!(mu2 < 1)) return true;
+        [[fallthrough]];
+      case screen::NearPair::in:
+        if (!solve_waiting()) found = i;
+        return false;
+      case screen::NearPair::out_by_projection:
+        return true;
+      case screen::NearPair::undecided:
+        pending.add(0, i, r, t.q, m.q);
+        return !(pending.size() == pairs_per_solve && solve_waiting());
+    }
+    return true;
+  });
+  if (found == none) solve_waiting();
+  return found;
+}
+
+std::size_t MovingScene::overlap_count(const Particle& trial, std::int64_t exclude) const {
+  const std::vector<Neighbor> near = neighbors(trial, 1.0, false, exclude);
+  return near.size();
+}
+
+std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutoff, bool with_mu2,
+                                       std::int64_t exclude) const {
+  const Impl& s = *impl_;
+  if (!(cutoff > 0) || !std::isfinite(cutoff) || !(cutoff * cutoff >= std::numeric_limits<double>::min()))
+    throw std::invalid_argument("MovingScene::neighbors: the cutoff must be positive and finite, got " +
+                                std::to_string(cutoff));
+  s.check_box(std::max(trial.bounding_radius(), s.grid_radius), cutoff, "MovingScene::neighbors");
+  const Sided t = trial_side(trial);
+  screen::Side ts = t.side;
+  ts.q = t.q;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Neighbor> out;
+  Pending pending(64);
+  s.for_each_near(trial, cutoff, exclude, [&](std::uint32_t i, const double r[3], double rr) {
+    Sided m = s.sided(i);
+    m.side.q = m.q;
+    double mu2 = 0;
+    switch (screen::decide_near_pair(ts, m.side, r, rr, cutoff, with_mu2, mu2)) {
+      case screen::NearPair::spheres:
+      case screen::NearPair::same_form:
+        if (mu2 < cutoff * cutoff) out.push_back({i, with_mu2 ? mu2 : nan});
+        break;
+      case screen::NearPair::in:
+        out.push_back({i, nan});
+        break;
+      case screen::NearPair::out_by_projection:
+        break;
+      case screen::NearPair::undecided:
+        pending.add(0, i, r, t.q, m.q);
+        break;
+    }
+    return true;
+  });
+  const std::size_t n = pending.size();
+  if (n > 0) {
+    BatchOptions options = s.solve_options;
+    std::vector<Status> status(n);
+    if (with_mu2) {
+      std::vector<double> mu2(n);
+      contact_function_batch(pending.batch.view(), {mu2.data(), nullptr, status.data()}, options);
+      for (std::size_t k = 0; k < n; ++k) {
+        if (!is_valid(status[k]) && status[k] != Status::out_of_range)
+          throw std::runtime_error("MovingScene::neighbors: mu^2 of a trial particle and particle " +
+                                   std::to_string(pending.index[k]) + " has no answer (" +
+                                   status_name(status[k]) + ")");
+        if (mu2[k] < cutoff * cutoff) out.push_back({pending.index[k], mu2[k]});
+      }
+    } else {
+      std::vector<std::uint8_t> overlap(n);
+      overlap_batch(pending.batch.view(), {overlap.data(), status.data()}, options, cutoff);
+      for (std::size_t k = 0; k < n; ++k) {
+        if (!is_valid(status[k]))
+          throw std::runtime_error("MovingScene::neighbors: the pair of a trial particle and particle " +
+                                   std::to_string(pending.index[k]) + " has no answer (" +
+                                   status_name(status[k]) + ")");
+        if (overlap[k]) out.push_back({pending.index[k], nan});
+      }
+    }
+  }
+  std::sort(out.begin(), out.end(),
+            [](const Neighbor& a, const Neighbor& b) { return a.index < b.index; });
+  return out;
+}
+
+void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, std::size_t count,
+                     std::int64_t* first_overlap, int threads) const {
+  const Impl& s = *impl_;
+  detail::ParallelErrors errors;
+  // Trials in blocks per thread: each block's undecided pairs (up to each
+  // trial's first decided overlap) solved in one call, across trials.
+  constexpr std::size_t block = 64;
+  const std::size_t blocks = (count + block - 1) / block;
+#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads())
+  {
+    Pending pending(batch_solve_pairs);
+    std::vector<std::int64_t> decided(block);
+#pragma omp for schedule(dynamic, 1)
+    for (std::size_t b = 0; b < blocks; ++b) errors.run([&] {
+      detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
+      const std::size_t begin = b * block, end = std::min(count, begin + block);
+      pending.clear();
+      // Answers the pending pairs, and the trials of [from, to) with them.
+      auto finish = [&](std::size_t from, std::size_t to) {
+        if (pending.size() > 0) pending.solve(solver);
+        std::vector<bool> answered(to - from, false);
+        for (std::size_t k = 0; k < pending.size(); ++k) {
+          const std::size_t t = pending.trial[k];
+          if (pending.overlap[k] && !answered[t - from]) {
+            first_overlap[t] = pending.index[k];
+            answered[t - from] = true;
+          }
+        }
+        for (std::size_t t = from; t < to; ++t)
+          if (!answered[t - from]) first_overlap[t] = decided[t - begin];
+        pending.clear();
+      };
+      std::size_t from = begin;
+      for (std::size_t t = begin; t < end; ++t) {
+        const Particle& trial = trials[t];
+        const Sided ts_copy = trial_side(trial);
+        screen::Side ts = ts_copy.side;
+        ts.q = ts_copy.q;
+        decided[t - begin] = none;
+        s.for_each_near(trial, 1.0, exclude ? exclude[t] : none,
+                        [&](std::uint32_t i, const double r[3], double rr) {
+          Sided m = s.sided(i);
+          m.side.q = m.q;
+          double mu2 = 0;
+          switch (screen::decide_near_pair(ts, m.side, r, rr, 1.0, false, mu2)) {
+            case screen::NearPair::spheres:
+            case screen::NearPair::same_form:
+              if (!(mu2 < 1)) return true;
+              [[fallthrough]];
+            case screen::NearPair::in:
+              decided[t - begin] = i;
+              return false;
+            case screen::NearPair::out_by_projection:
+              return true;
+            case screen::NearPair::undecided:
+              pending.add(std::uint32_t(t), i, r, ts_copy.q, m.q);
+              return true;
+          }
+          return true;
+        });
+        if (pending.size() >= batch_solve_pairs) {
+          finish(from, t + 1);
+          from = t + 1;
+        }
+      }
+      finish(from, end);
+    });
+  }
+  errors.rethrow_if_failed();
+}
+
+std::array<int, 3> MovingScene::cells() const noexcept { return impl_->grid().cells; }
+
+std::array<int, 3> MovingScene::cell_of(const std::array<double, 3>& centre) const {
+  const std::size_t cell = impl_->cell_of(centre);
+  const auto& n = impl_->grid().cells;
+  return {int(cell / (std::size_t(n[1]) * n[2])), int(cell / n[2] % n[1]), int(cell % n[2])};
+}
+
+std::array<int, 3> MovingScene::cell_of_particle(std::size_t i) const {
+  impl_->check_index(i, "MovingScene::cell_of_particle");
+  const std::size_t cell = std::size_t(impl_->where[i] / impl_->capacity);
+  const auto& n = impl_->grid().cells;
+  return {int(cell / (std::size_t(n[1]) * n[2])), int(cell / n[2] % n[1]), int(cell % n[2])};
+}
+
+}  // namespace pwcontact

@@ -1,0 +1,365 @@
+// The moving scene (scene.hpp) against a brute force over every periodic
+// image with the scalar reference path, and against a fresh screen_pairs,
+// after every step of random sequences of inserts, removes, moves and
+// queries; bad input refused with the scene unchanged.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "pwcontact/pwcontact.hpp"
+#include "pwcontact/moving_scene.hpp"
+
+namespace {
+
+using pwcontact::Box;
+using pwcontact::ParticleStore;
+using pwcontact::MovingScene;
+using Particle = ParticleStore::Particle;
+
+// Near-tangent pairs are not compared: the overlap answers are exact beyond
+// 1e-9 relative to the cutoff's square (batch.hpp), the reference path's
+// mu^2 to ~1e-14.
+constexpr double tangency_band = 1e-8;
+
+// mu^2 of a trial and a stored particle by the reference path, the smallest
+// over every image n1 a1 + n2 a2 + n3 a3, |n_k| <= 2, of the stored one
+// (the box's lattice vectors from its lengths and tilts, independent of the
+// scene's minimum image and cells).
+double brute_mu2(const Box& box, const Particle& t, const ParticleStore& s, std::size_t i) {
+  const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
+  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const int reach = box.periodic ? 2 : 0;
+  std::array<double, 6> q;
+  for (int k = 0; k < 6; ++k) q[k] = s.q(k)[i];
+  // Both centres moved into the box first, by whole lattice vectors (the
+  // fractional coordinates by Eigen's LU, rounded down).
+  Eigen::Vector3d ci(s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]);
+  Eigen::Vector3d ct(t.centre()[0], t.centre()[1], t.centre()[2]);
+  if (box.periodic) {
+    Eigen::Matrix3d h;
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r) h(r, c) = a[c][r];
+    const Eigen::Matrix3d inverse = h.inverse();
+    for (Eigen::Vector3d* x : {&ci, &ct}) {
+      Eigen::Vector3d f = inverse * *x;
+      for (int k = 0; k < 3; ++k) f[k] = std::floor(f[k]);
+      *x -= h * f;
+    }
+  }
+  double best = INFINITY;
+  for (int n1 = -reach; n1 <= reach; ++n1)
+    for (int n2 = -reach; n2 <= reach; ++n2)
+      for (int n3 = -reach; n3 <= reach; ++n3) {
+        double r[3];
+        for (int k = 0; k < 3; ++k)
+          r[k] = ci[k] - ct[k] + n1 * a[0][k] + n2 * a[1][k] + n3 * a[2][k];
+        const double limit = 3 * (t.bounding_radius() + s.bounding_radius()[i]);
+        if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= limit * limit) continue;
+        const auto result = pwcontact::contact_function<double>(r, t.q().data(), q.data());
+        EXPECT_EQ(result.status, pwcontact::Status::ok);
+        best = std::min(best, result.mu2);
+      }
+  return best;
+}
+
+// Centres of a periodic box: anywhere in [-2 L, 3 L) (given outside the box
+// as often as inside); open: in [0, L).
+std::array<double, 3> random_centre(std::mt19937_64& engine, const Box& box, double l) {
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::array<double, 3> c;
+  for (double& x : c) x = box.periodic ? l * (5 * unit(engine) - 2) : l * unit(engine);
+  return c;
+}
+
+std::array<double, 4> random_quaternion(std::mt19937_64& engine) {
+  std::normal_distribution<double> normal(0, 1);
+  return {normal(engine), normal(engine), normal(engine), normal(engine)};
+}
+
+// Spheroids and ellipsoids of semi-axes 0.15 .. 0.6, some spheres, some of a
+// shape type.
+Particle random_particle(std::mt19937_64& engine, const ParticleStore& s, const Box& box, double l) {
+  std::uniform_real_distribution<double> unit(0, 1);
+  const auto c = random_centre(engine, box, l);
+  const double kind = unit(engine);
+  if (kind < 0.2) {
+    const double a = 0.15 + 0.3 * unit(engine);
+    return ParticleStore::particle_axes(c, {a, a, a}, {1, 0, 0, 0});
+  }
+  if (kind < 0.5 && s.types() > 0) return s.particle_typed(c, 0, random_quaternion(engine));
+  return ParticleStore::particle_axes(
+      c, {0.15 + 0.45 * unit(engine), 0.15 + 0.45 * unit(engine), 0.15 + 0.45 * unit(engine)},
+      random_quaternion(engine));
+}
+
+// The trial query's answers against the brute force.
+void expect_query_matches(const MovingScene& scene, const Particle& t, std::int64_t exclude,
+                          const std::string& where) {
+  const ParticleStore& s = scene.particles();
+  std::set<std::uint32_t> overlapping, near, within_cutoff;
+  std::vector<double> mu2(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (std::int64_t(i) == exclude) continue;
+    mu2[i] = brute_mu2(scene.box(), t, s, i);
+    if (std::abs(mu2[i] - 1) <= tangency_band || std::abs(mu2[i] - 1.96) <= tangency_band * 1.96) {
+      near.insert(std::uint32_t(i));
+      continue;
+    }
+    if (mu2[i] < 1) overlapping.insert(std::uint32_t(i));
+    if (mu2[i] < 1.96) within_cutoff.insert(std::uint32_t(i));
+  }
+  // A trial far outside a triclinic box is wrapped into it through its
+  // fractional coordinates, each to a few eps of their size (as is the brute
+  // force's): r12 then errs by ~eps |x|, mu^2 by twice that over |r12|
+  // (>= 0.1 here), relatively. (The same for a stored particle far out.)
+  double largest = 0;
+  for (double x : t.centre()) largest = std::max(largest, std::abs(x));
+  const std::int64_t first = scene.overlaps(t, exclude);
+  if (first == MovingScene::none) {
+    EXPECT_TRUE(overlapping.empty()) << where << ": none found, " << overlapping.size() << " overlap";
+  } else {
+    EXPECT_TRUE(overlapping.count(std::uint32_t(first)) || near.count(std::uint32_t(first)))
+        << where << ": particle " << first << " reported overlapping, mu2 " << mu2[first];
+  }
+  const std::size_t count = scene.overlap_count(t, exclude);
+  EXPECT_GE(count, overlapping.size()) << where;
+  EXPECT_LE(count, overlapping.size() + near.size()) << where;
+  for (bool with_mu2 : {false, true}) {
+    const auto found = scene.neighbors(t, 1.4, with_mu2, exclude);
+    std::set<std::uint32_t> got;
+    for (const auto& n : found) {
+      got.insert(n.index);
+      if (near.count(n.index)) continue;
+      EXPECT_TRUE(within_cutoff.count(n.index)) << where << ": neighbour " << n.index;
+      if (with_mu2) {
+        double far = largest;
+        for (int k = 0; k < 3; ++k) far = std::max(far, std::abs(s.centre(k)[n.index]));
+        EXPECT_NEAR(n.mu2, mu2[n.index], (1e-10 + 1e-13 * far) * mu2[n.index])
+            << where << ": neighbour " << n.index;
+      }
+    }
+    for (std::uint32_t i : within_cutoff) EXPECT_TRUE(got.count(i)) << where << ": missed neighbour " << i;
+  }
+}
+
+// Every stored particle's overlaps (excluding itself) against a fresh
+// screen_pairs of the same particles.
+void expect_same_as_screen(const MovingScene& scene, const std::string& where) {
+  pwcontact::ScreenedPairs pairs;
+  pwcontact::ScreenOptions options;
+  options.threads = 1;
+  pwcontact::screen_pairs(scene.particles(), scene.box(), options, pairs);
+  std::vector<std::size_t> count(scene.size(), 0);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    ++count[pairs.i[k]];
+    ++count[pairs.j[k]];
+  }
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const Particle p = scene.particles().particle_at(i);
+    const bool any = scene.overlaps(p, std::int64_t(i)) != MovingScene::none;
+    EXPECT_EQ(any, count[i] > 0) << where << ": particle " << i;
+    EXPECT_EQ(scene.overlap_count(p, std::int64_t(i)), count[i]) << where << ": particle " << i;
+  }
+}
+
+struct Sequence {
+  Box box;
+  double length;   // of the region particles are drawn in
+  std::size_t particles;
+  std::size_t steps;
+  std::uint64_t seed;
+};
+
+void run_sequence(const Sequence& q) {
+  std::mt19937_64 engine(q.seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  for (std::size_t n = 0; n < q.particles; ++n) s.add_particle(random_particle(engine, s, q.box, q.length));
+  MovingScene scene(s, q.box);
+  expect_same_as_screen(scene, "start");
+  for (std::size_t step = 0; step < q.steps; ++step) {
+    const std::string where = "seed " + std::to_string(q.seed) + ", step " + std::to_string(step);
+    const double op = unit(engine);
+    const ParticleStore& now = scene.particles();
+    if (op < 0.45 && scene.size() > 0) {
+      // A move: small (a Monte Carlo step), across the boundary, or far away.
+      const std::size_t i = std::size_t(unit(engine) * double(scene.size()));
+      Particle p = now.particle_at(i);
+      std::array<double, 3> c = p.centre();
+      const double kind = unit(engine);
+      const double jump = kind < 0.8 ? 0.2 : (kind < 0.95 ? q.length : 1e6);
+      for (double& x : c) x += jump * (2 * unit(engine) - 1);
+      Particle moved = unit(engine) < 0.5 ? p.moved_to(c) : random_particle(engine, now, q.box, q.length).moved_to(c);
+      expect_query_matches(scene, moved, std::int64_t(i), where + " (trial move)");
+      scene.move(i, moved);
+    } else if (op < 0.6) {
+      const Particle p = random_particle(engine, now, q.box, q.length);
+      expect_query_matches(scene, p, MovingScene::none, where + " (trial insert)");
+      const std::uint32_t i = scene.insert(p);
+      EXPECT_EQ(i, scene.size() - 1);
+    } else if (op < 0.75 && scene.size() > 0) {
+      const std::size_t i = std::size_t(unit(engine) * double(scene.size()));
+      const std::size_t last = scene.size() - 1;
+      const Particle moving = now.particle_at(last);
+      EXPECT_EQ(scene.remove(i), last);
+      if (i != last) {
+        EXPECT_EQ(scene.particles().particle_at(i).centre(), moving.centre()) << where;
+      }
+    } else {
+      expect_query_matches(scene, random_particle(engine, now, q.box, q.length), MovingScene::none,
+                           where + " (query)");
+    }
+    if (step % 40 == 39) expect_same_as_screen(scene, where);
+  }
+  // Emptied and refilled.
+  while (scene.size() > 0) scene.remove(scene.size() - 1);
+  EXPECT_EQ(scene.overlaps(random_particle(engine, scene.particles(), q.box, q.length)), MovingScene::none);
+  for (std::size_t n = 0; n < q.particles; ++n)
+    scene.insert(random_particle(engine, scene.particles(), q.box, q.length));
+  expect_same_as_screen(scene, "refilled");
+  for (int n = 0; n < 20; ++n)
+    expect_query_matches(scene, random_particle(engine, scene.particles(), q.box, q.length),
+                         MovingScene::none, "refilled, query " + std::to_string(n));
+}
+
+TEST(MovingScene, RandomSequencesInAPeriodicBoxMatchTheBruteForceAndTheScreen) {
+  for (std::uint64_t seed : {1, 2})
+    run_sequence({Box::periodic_box(5, 6, 5.5), 5.5, 150, 1500, seed});
+}
+
+TEST(MovingScene, RandomSequencesInATriclinicBoxMatchTheBruteForceAndTheScreen) {
+  for (std::uint64_t seed : {3, 4})
+    run_sequence({Box::triclinic(5, 6, 5.5, 0.4, -0.3, 0.25), 5.5, 150, 1500, seed});
+}
+
+TEST(MovingScene, RandomSequencesInOpenBoundariesMatchTheBruteForceAndTheScreen) {
+  for (std::uint64_t seed : {5, 6}) run_sequence({Box::open(), 5, 150, 1500, seed});
+}
+
+TEST(MovingScene, BatchedQueriesAreTheSingleQueriesWhateverTheThreadCount) {
+  std::mt19937_64 engine(11);
+  const Box box = Box::periodic_box(12, 12, 12);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  for (int n = 0; n < 1500; ++n) s.add_particle(random_particle(engine, s, box, 12));
+  const MovingScene scene(s, box);
+  std::vector<Particle> trials;
+  std::vector<std::int64_t> exclude;
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int n = 0; n < 3000; ++n) {
+    const std::size_t i = std::size_t(unit(engine) * double(s.size()));
+    auto c = s.particle_at(i).centre();
+    for (double& x : c) x += 0.3 * (2 * unit(engine) - 1);
+    trials.push_back(random_particle(engine, s, box, 12).moved_to(c));
+    exclude.push_back(n % 3 ? std::int64_t(i) : MovingScene::none);
+  }
+  std::vector<std::int64_t> single(trials.size());
+  std::size_t overlapping = 0;
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    single[k] = scene.overlaps(trials[k], exclude[k]);
+    overlapping += single[k] != MovingScene::none;
+  }
+  EXPECT_GT(overlapping, trials.size() / 10) << "a test of both answers";
+  EXPECT_LT(overlapping, trials.size() * 9 / 10) << "a test of both answers";
+  for (int threads : {1, 2, 3}) {
+    std::vector<std::int64_t> batched(trials.size(), -7);
+    scene.overlaps(trials.data(), exclude.data(), trials.size(), batched.data(), threads);
+    EXPECT_EQ(batched, single) << threads << " threads";
+  }
+}
+
+TEST(MovingScene, ParallelMovesAreTheMovesOneAfterAnother) {
+  std::mt19937_64 engine(12);
+  const Box box = Box::triclinic(30, 30, 30, 0.2, 0.1, -0.1);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  for (int n = 0; n < 12000; ++n) s.add_particle(random_particle(engine, s, box, 30));
+  MovingScene parallel(s, box), serial(s, box);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int round = 0; round < 20; ++round) {
+    // One move in every fourth cell along each axis (cells apart, so the
+    // moves are independent), the cells shifted every round.
+    std::vector<std::uint32_t> index;
+    std::vector<Particle> moved;
+    std::set<std::array<int, 3>> taken;
+    for (std::uint32_t i = 0; i < s.size(); ++i) {
+      const auto cell = parallel.cell_of_particle(i);
+      if ((cell[0] + round) % 4 || (cell[1] + round) % 4 || (cell[2] + round) % 4 ||
+          !taken.insert(cell).second)
+        continue;
+      auto c = parallel.particles().particle_at(i).centre();
+      for (double& x : c) x += 0.3 * (2 * unit(engine) - 1);
+      index.push_back(i);
+      moved.push_back(parallel.particles().particle_at(i).moved_to(c));
+    }
+    ASSERT_GT(index.size(), 50u) << "round " << round;
+    parallel.move_many(index.data(), moved.data(), index.size(), 2);
+    for (std::size_t k = 0; k < index.size(); ++k) serial.move(index[k], moved[k]);
+    for (std::uint32_t i = 0; i < s.size(); ++i)
+      ASSERT_EQ(parallel.cell_of_particle(i), parallel.cell_of(parallel.particles().particle_at(i).centre()))
+          << "round " << round << ", particle " << i;
+  }
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(parallel.particles().centre(k), serial.particles().centre(k));
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Particle p = serial.particles().particle_at(i);
+    EXPECT_EQ(parallel.overlaps(p, std::int64_t(i)), serial.overlaps(p, std::int64_t(i))) << i;
+  }
+  expect_same_as_screen(parallel, "after parallel moves");
+}
+
+TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
+  std::mt19937_64 engine(13);
+  const Box box = Box::periodic_box(6, 6, 6);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  for (int n = 0; n < 100; ++n) s.add_particle(random_particle(engine, s, box, 6));
+  MovingScene scene(s, box);
+  const Particle good = scene.particles().particle_at(0);
+  auto expect_message = [](auto&& call, const std::string& text) {
+    try {
+      call();
+      ADD_FAILURE() << "no exception, expected one naming " << text;
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  expect_message([&] { scene.move(100, good); }, "particle 100 does not exist");
+  expect_message([&] { scene.remove(250); }, "particle 250 does not exist");
+  expect_message([&] { scene.trial({0, 0, 0}, {1, 2, 0, 1, 0, 1}); }, "not positive definite");
+  expect_message([&] { scene.trial({NAN, 0, 0}, {1, 0, 0, 1, 0, 1}); }, "centre is not finite");
+  expect_message([&] { good.moved_to({0, INFINITY, 0}); }, "centre is not finite");
+  expect_message([&] { scene.trial_typed({0, 0, 0}, 3, {1, 0, 0, 0}); }, "type 3 does not exist");
+  expect_message([&] { scene.trial_axes({0, 0, 0}, {1, -1, 1}, {1, 0, 0, 0}); }, "semi-axes");
+  // A particle too large for the box (its reach would wrap around).
+  expect_message([&] { scene.move(3, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0})); },
+                 "periodic box is too small");
+  const std::uint32_t index[2] = {1, 7};
+  const Particle moves[2] = {good, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0})};
+  expect_message([&] { scene.move_many(index, moves, 2); }, "periodic box is too small");
+  ParticleStore other;
+  other.add_type({0.1, 0.1, 0.1});
+  other.add_type({0.1, 0.2, 0.1});
+  expect_message([&] { scene.insert(other.particle_typed({0, 0, 0}, 1, {1, 0, 0, 0})); },
+                 "type 1 does not exist");
+  // Unchanged: the same particles, and the same answers as a fresh scene's.
+  EXPECT_EQ(scene.size(), 100u);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(scene.particles().centre(k), s.centre(k));
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(scene.particles().q(k), s.q(k));
+  const MovingScene fresh(s, box);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Particle p = s.particle_at(i);
+    EXPECT_EQ(scene.overlap_count(p, std::int64_t(i)), fresh.overlap_count(p, std::int64_t(i)));
+  }
+  EXPECT_THROW(MovingScene(s, box, {0.5, {}}), std::invalid_argument);
+  EXPECT_THROW(scene.neighbors(good, -1), std::invalid_argument);
+}
+
+}  // namespace
