@@ -90,13 +90,15 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
   constexpr std::size_t block = 4096;
   const double volume = 4.0 / 3.0 * 3.14159265358979323846 * 0.125;
   const double length = std::cbrt(double(n) * volume / packing);
-  SpheroidScene scene{{}, Box::periodic_box(length, length, length)};
+  SpheroidScene scene{{}, Box::periodic_box(length, length, length), {}, {}};
   // Identical shapes: one shape type (declared identical to the search).
   if (identical_shapes) {
     const double equatorial = 0.5 / std::cbrt(max_aspect);
     scene.particles.add_type({equatorial, equatorial, equatorial * max_aspect});
   }
   scene.particles.resize(n);
+  scene.semi_axes.resize(n);
+  scene.orientation.resize(n);
   const std::size_t blocks = (n + block - 1) / block;
   const double log_aspect = std::log(max_aspect);
   std::size_t done = 0;
@@ -109,11 +111,15 @@ SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing, 
       const double equatorial = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
       const std::array<double, 3> centre = {length * uniform01(engine), length * uniform01(engine),
                                             length * uniform01(engine)};
-      if (identical_shapes)
-        scene.particles.set_typed(i, centre, 0, random_quaternion(engine));
-      else
-        scene.particles.set_axes(i, centre, {equatorial, equatorial, equatorial * aspect},
-                                 random_quaternion(engine));
+      const std::array<double, 4> q = random_quaternion(engine);  // a unit quaternion
+      scene.orientation[i] = q;
+      if (identical_shapes) {
+        scene.semi_axes[i] = scene.particles.type_semi_axes(0);
+        scene.particles.set_typed(i, centre, 0, q);
+      } else {
+        scene.semi_axes[i] = {equatorial, equatorial, equatorial * aspect};
+        scene.particles.set_axes(i, centre, scene.semi_axes[i], q);
+      }
     }
     if (progress && omp_get_thread_num() == 0) {
       std::size_t now;
@@ -132,7 +138,7 @@ SpheroidScene ellipse_scene(std::size_t n, std::uint64_t seed, double packing, d
   constexpr std::size_t block = 4096;
   const double area = 3.14159265358979323846 * 0.25;
   const double length = std::sqrt(double(n) * area / packing);
-  SpheroidScene scene{{}, Box::two_dimensional_box(length, length)};
+  SpheroidScene scene{{}, Box::two_dimensional_box(length, length), {}, {}};
   scene.particles.resize(n);
   const std::size_t blocks = (n + block - 1) / block;
   const double log_aspect = std::log(max_aspect);

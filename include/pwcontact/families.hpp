@@ -2,8 +2,10 @@
 // the demo, reproducible from a seed on every platform.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "pwcontact/batch.hpp"
 #include "pwcontact/screen.hpp"
@@ -44,6 +46,11 @@ PairBatch<float> to_float(const PairBatch<double>& pairs);
 struct SpheroidScene {
   ParticleStore particles;
   Box box;
+  // spheroid_scene: per particle, the semi-axes (a, a, c) along the body
+  // axes and the unit quaternion (w, x, y, z) that orients them, from which
+  // its Q was made (for moves that turn it). Empty for ellipse_scene.
+  std::vector<std::array<double, 3>> semi_axes;
+  std::vector<std::array<double, 4>> orientation;
 };
 SpheroidScene spheroid_scene(std::size_t n, std::uint64_t seed, double packing = 0.3,
                              double max_aspect = 3, bool identical_shapes = false,

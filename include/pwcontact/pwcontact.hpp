@@ -5,6 +5,7 @@
 #include "pwcontact/batch.hpp"
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/families.hpp"
+#include "pwcontact/monte_carlo.hpp"
 #include "pwcontact/moving_scene.hpp"
 #include "pwcontact/reference.hpp"
 #include "pwcontact/scene_files.hpp"

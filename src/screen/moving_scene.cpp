@@ -25,6 +25,15 @@ struct Slot {
   double bounding;
 };
 
+// The rest of a member, read only for the pairs the bounding spheres leave,
+// in one cache line beside its slot's (in the order of the cells, like the
+// slots: a sweep through the scene reads it from cache, not from the
+// particle store's arrays in the order of the indices).
+struct alignas(64) Detail {
+  double q[6];
+  double inscribed, sphere;
+};
+
 // Undecided pairs of a single query solved together: a few SIMD blocks, so
 // that a query that meets an overlap early stops early.
 constexpr std::size_t pairs_per_solve = 16;
@@ -38,10 +47,16 @@ std::string particle_name(std::size_t i) { return "particle " + std::to_string(i
 // (in its outer cells), the grid is rebuilt over the particles' new extent.
 std::size_t outside_limit(std::size_t n) { return n / 4 + 64; }
 
-// A trial or stored particle as the prefilters take it.
-struct Sided {
+// A trial particle as the prefilters take it (its form copied: six
+// contiguous numbers).
+struct TrialSide {
   double q[6];
   screen::Side side;
+  explicit TrialSide(const ParticleStore::Particle& t) {
+    for (int k = 0; k < 6; ++k) q[k] = t.q()[k];
+    side = {0, t.bounding_radius(), t.inscribed_radius(), t.sphere_radius(), q};
+  }
+  TrialSide(const TrialSide&) = delete;
 };
 
 }  // namespace
@@ -55,6 +70,7 @@ struct MovingScene::Impl {
   double side = 0;          // the narrowest cell, in cell space
   std::size_t capacity = 0;  // slots per cell
   std::vector<Slot> slots;                  // cells * capacity
+  std::vector<Detail> details;              // cells * capacity
   std::vector<std::uint32_t> members;       // cells * capacity: particle indices
   std::vector<std::uint32_t> count;         // per cell
   std::vector<std::uint64_t> where;         // per particle: cell * capacity + slot
@@ -108,6 +124,10 @@ struct MovingScene::Impl {
     const double x[3] = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
     lists.geometry.wrap(x, s.position);
     s.bounding = store.bounding_radius()[i];
+    Detail& d = details[at];
+    for (int k = 0; k < 6; ++k) d.q[k] = store.q(k)[i];
+    d.inscribed = store.inscribed_radius()[i];
+    d.sphere = store.sphere_radius()[i];
     members[at] = std::uint32_t(i);
     where[i] = at;
   }
@@ -128,6 +148,7 @@ struct MovingScene::Impl {
     const std::uint64_t last = cell * capacity + (count[cell] - 1);
     if (at != last) {
       slots[at] = slots[last];
+      details[at] = details[last];
       members[at] = members[last];
       where[members[at]] = at;
     }
@@ -225,6 +246,7 @@ struct MovingScene::Impl {
     capacity = std::max<std::size_t>({8, fullest + fullest / 2 + 2, capacity});
     count.assign(cell_total, 0);
     slots.assign(cell_total * capacity, Slot{});
+    details.assign(cell_total * capacity, Detail{});
     members.assign(cell_total * capacity, 0);
     where.assign(n, 0);
     for (std::size_t i = 0; i < n; ++i) occupy(i, cell[i]);
@@ -276,6 +298,43 @@ struct MovingScene::Impl {
   // ---------------------------------------------------------------------
   // Queries
 
+  // The cells within `reach` of cell-space coordinate u along axis k, as
+  // at most two runs of consecutive cells with their image shifts (as
+  // screen::neighbour_runs gives them); every cell once, with nearest_image
+  // set, when the reach spans the whole periodic axis.
+  screen::CellRuns runs_within(int k, double u, double reach) const {
+    screen::CellRuns runs;
+    const screen::ClassGrid& g = grid();
+    const int n = g.cells[k];
+    auto add = [&](int first, int last, int shift) {
+      runs.first[runs.count] = first;
+      runs.last[runs.count] = last;
+      runs.shift[runs.count++] = shift;
+    };
+    if (!lists.geometry.periodic[k]) {
+      add(lists.cell_of(g, k, u - reach), lists.cell_of(g, k, u + reach), 0);
+      return runs;
+    }
+    const double low = std::floor((u - reach) * g.inverse_side[k]);
+    const double high = std::floor((u + reach) * g.inverse_side[k]);
+    if (!(high - low + 1 < n)) {
+      runs.nearest_image = true;
+      add(0, n - 1, 0);
+      return runs;
+    }
+    const int lo = int(low), hi = int(high);
+    if (lo < 0) {
+      add(lo + n, n - 1, -1);
+      if (hi >= 0) add(0, hi, 0);
+    } else if (hi >= n) {
+      if (lo < n) add(lo, n - 1, 0);
+      add(std::max(0, lo - n), hi - n, 1);
+    } else {
+      add(lo, hi, 0);
+    }
+    return runs;
+  }
+
   // Every stored particle but `exclude` whose bounding sphere meets the
   // trial's at this cutoff, in the scene's search order (cells by their
   // runs, slots in order): visit(index, r, rr) with r = c_index - c_trial
@@ -288,16 +347,37 @@ struct MovingScene::Impl {
     double w[3], u[3];
     geometry.wrap(trial.centre().data(), w);
     lists.cell_space(w, u);
+    // The cells the cube of the largest reach about the trial touches: two
+    // or three along each axis (not always the 3 x 3 x 3 about its cell).
     const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
-    const int span = std::max(1, int(std::ceil(reach / side)));
     const screen::ClassGrid& g = grid();
-    const screen::CellRuns runs[3] = {screen::neighbour_runs(lists, g, 0, u[0], span),
-                                      screen::neighbour_runs(lists, g, 1, u[1], span),
-                                      screen::neighbour_runs(lists, g, 2, u[2], span)};
+    const screen::CellRuns runs[3] = {runs_within(0, u[0], reach), runs_within(1, u[1], reach),
+                                      runs_within(2, u[2], reach)};
     const bool nearest_image =
         runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
     const double trial_reach = cutoff * trial.bounding_radius();
     const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
+    // One cell's members, seen from `origin` (the trial's position less the
+    // image shift of the cell); false when the visit stops the search.
+    auto scan = [&](std::size_t cell, const double origin[3]) {
+      const Slot* s = slots.data() + cell * capacity;
+      const std::uint32_t* m = members.data() + cell * capacity;
+      for (std::uint32_t k = 0, end = count[cell]; k < end; ++k) {
+        double r[3] = {s[k].position[0] - origin[0], s[k].position[1] - origin[1],
+                       s[k].position[2] - origin[2]};
+        if (nearest_image) geometry.minimum_image(r);
+        const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+        const double limit = trial_reach + cutoff * s[k].bounding;
+        if (rr >= limit * limit || std::int64_t(m[k]) == exclude) continue;
+        if (!visit(m[k], details[cell * capacity + k], s[k].bounding, r, rr)) return false;
+      }
+      return true;
+    };
+    // The trial's own cell first (its nearest particles, where an overlap
+    // is most likely met), then the others.
+    const int own[3] = {lists.cell_of(g, 0, u[0]), lists.cell_of(g, 1, u[1]), lists.cell_of(g, 2, u[2])};
+    const std::size_t own_cell = (std::size_t(own[0]) * ny + std::size_t(own[1])) * nz + std::size_t(own[2]);
+    if (!scan(own_cell, w)) return;
     for (int ra = 0; ra < runs[0].count; ++ra)
       for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
         for (int rb = 0; rb < runs[1].count; ++rb)
@@ -308,40 +388,22 @@ struct MovingScene::Impl {
               geometry.shift_vector(shift, image);
               double origin[3];  // the trial seen from the members' images
               for (int k = 0; k < 3; ++k) origin[k] = w[k] - image[k];
+              const bool unshifted = shift[0] == 0 && shift[1] == 0 && shift[2] == 0;
               for (int c = runs[2].first[rc]; c <= runs[2].last[rc]; ++c) {
                 const std::size_t cell = (std::size_t(a) * ny + std::size_t(b)) * nz + std::size_t(c);
-                const Slot* s = slots.data() + cell * capacity;
-                const std::uint32_t* m = members.data() + cell * capacity;
-                for (std::uint32_t k = 0, end = count[cell]; k < end; ++k) {
-                  double r[3] = {s[k].position[0] - origin[0], s[k].position[1] - origin[1],
-                                 s[k].position[2] - origin[2]};
-                  if (nearest_image) geometry.minimum_image(r);
-                  const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                  const double limit = trial_reach + cutoff * s[k].bounding;
-                  if (rr >= limit * limit || std::int64_t(m[k]) == exclude) continue;
-                  if (!visit(m[k], r, rr)) return;
-                }
+                if (unshifted && cell == own_cell) continue;
+                if (!scan(cell, origin)) return;
               }
             }
   }
 
-  Sided sided(std::size_t i) const {
-    Sided s;
-    for (int k = 0; k < 6; ++k) s.q[k] = store.q(k)[i];
-    s.side = {std::uint32_t(i), store.bounding_radius()[i], store.inscribed_radius()[i],
-              store.sphere_radius()[i], nullptr};
-    return s;
-  }
 };
 
 namespace {
 
-// The trial side of a pair (its form copied: six contiguous numbers).
-Sided trial_side(const ParticleStore::Particle& t) {
-  Sided s;
-  for (int k = 0; k < 6; ++k) s.q[k] = t.q()[k];
-  s.side = {0, t.bounding_radius(), t.inscribed_radius(), t.sphere_radius(), nullptr};
-  return s;
+// A stored particle as the prefilters take it.
+screen::Side member_side(std::uint32_t i, const Detail& d, double bounding) {
+  return {i, bounding, d.inscribed, d.sphere, d.q};
 }
 
 // Undecided pairs waiting for the overlap kernels, in search order, with
@@ -369,21 +431,24 @@ struct Pending {
     index.clear();
     trial.clear();
   }
-  // The overlap answers; a pair that the solver cannot answer is an error,
-  // never a silent "apart".
-  void solve(detail::PairOverlapSolver& solver) {
+  void truncate(std::size_t n) {
+    batch.resize(n);
+    index.resize(n);
+    trial.resize(n);
+  }
+  // The overlap answers of pairs [begin, begin + n) (n at most the solver's
+  // capacity); a pair that the solver cannot answer is an error, never a
+  // silent "apart".
+  void solve(detail::PairOverlapSolver& solver, std::size_t begin, std::size_t n) {
     overlap.resize(size());
     status.resize(size());
-    const PairBatchView<double> all = batch.view();
-    for (std::size_t begin = 0; begin < size(); begin += solver.capacity()) {
-      PairBatchView<double> part = all;
-      part.size = std::min(solver.capacity(), size() - begin);
-      for (auto& p : part.r12) p += begin;
-      for (auto& p : part.q1) p += begin;
-      for (auto& p : part.q2) p += begin;
-      solver.solve(part, overlap.data() + begin, status.data() + begin);
-    }
-    for (std::size_t k = 0; k < size(); ++k)
+    PairBatchView<double> part = batch.view();
+    part.size = n;
+    for (auto& p : part.r12) p += begin;
+    for (auto& p : part.q1) p += begin;
+    for (auto& p : part.q2) p += begin;
+    solver.solve(part, overlap.data() + begin, status.data() + begin);
+    for (std::size_t k = begin; k < begin + n; ++k)
       if (!is_valid(status[k]))
         throw std::runtime_error("MovingScene: the overlap of a trial particle with particle " +
                                  std::to_string(index[k]) + " has no answer (" +
@@ -555,92 +620,103 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   if (s.outside_count > outside_limit(s.store.size())) s.rebuild(0);
 }
 
-std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
-  const Impl& s = *impl_;
-  detail::PairOverlapSolver& solver = thread_solver(s.solve_options, pairs_per_solve);
-  thread_local Pending pending(pairs_per_solve);
-  pending.clear();
-  const Sided t = trial_side(trial);
-  screen::Side ts = t.side;
-  ts.q = t.q;
-  std::int64_t found = none;
-  // The earliest overlapping pair among those waiting, if any.
-  auto solve_waiting = [&]() -> bool {
-    if (pending.size() == 0) return false;
-    pending.solve(solver);
-    for (std::size_t k = 0; k < pending.size(); ++k)
-      if (pending.overlap[k]) {
-        found = pending.index[k];
-        return true;
-      }
-    pending.clear();
-    return false;
-  };
-  s.for_each_near(trial, 1.0, exclude, [&](std::uint32_t i, const double r[3], double rr) {
-    Sided m = s.sided(i);
-    m.side.q = m.q;
-    double mu2 = 0;
-    switch (screen::decide_near_pair(ts, m.side, r, rr, 1.0, false, mu2)) {
-      case screen::NearPair::spheres:
-      case screen::NearPair::same_form:
-        if (!(mu2 < 1)) return true;
-        [[fallthrough]];
-      case screen::NearPair::in:
-        if (!solve_waiting()) found = i;
-        return false;
-      case screen::NearPair::out_by_projection:
-        return true;
-      case screen::NearPair::undecided:
-        pending.add(0, i, r, t.q, m.q);
-        return !(pending.size() == pairs_per_solve && solve_waiting());
-    }
-    return true;
-  });
-  if (found == none) solve_waiting();
+namespace {
+
+// One trial's overlap question, in two stages: the prefilters over every
+// candidate first (stopping at the first overlap they decide), then the
+// kernels on the candidates left, in search order. The answer: the first
+// candidate the prefilters find overlapping, else the first of the solved
+// ones that overlaps, else none. It does not depend on how the solved
+// pairs are grouped, so a batch of trials gets what single queries get.
+// Returns the decided answer (or none), with the undecided candidates
+// appended to `pending` when there is none.
+template <class Impl>
+std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial, std::uint32_t slot,
+                             std::int64_t exclude, Pending& pending) {
+  const TrialSide t(trial);
+  const std::size_t first_pending = pending.size();
+  std::int64_t found = MovingScene::none;
+  s.for_each_near(trial, 1.0, exclude,
+                  [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
+                    double mu2 = 0;
+                    switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr, 1.0,
+                                                     false, mu2)) {
+                      case screen::NearPair::spheres:
+                      case screen::NearPair::same_form:
+                        if (!(mu2 < 1)) return true;
+                        [[fallthrough]];
+                      case screen::NearPair::in:
+                        found = i;
+                        return false;
+                      case screen::NearPair::out_by_projection:
+                        return true;
+                      case screen::NearPair::undecided:
+                        pending.add(slot, i, r, t.q, d.q);
+                        return true;
+                    }
+                    return true;
+                  });
+  if (found != MovingScene::none) pending.truncate(first_pending);
   return found;
 }
 
+}  // namespace
+
+std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
+  const Impl& s = *impl_;
+  thread_local Pending pending(64);
+  pending.clear();
+  const std::int64_t decided = prefilter_trial(s, trial, 0, exclude, pending);
+  if (decided != none || pending.size() == 0) return decided;
+  // The kernels a SIMD block or two at a time, stopping at the first overlap.
+  detail::PairOverlapSolver& solver = thread_solver(s.solve_options, pairs_per_solve);
+  for (std::size_t begin = 0; begin < pending.size(); begin += pairs_per_solve) {
+    const std::size_t n = std::min(pairs_per_solve, pending.size() - begin);
+    pending.solve(solver, begin, n);
+    for (std::size_t k = begin; k < begin + n; ++k)
+      if (pending.overlap[k]) return pending.index[k];
+  }
+  return none;
+}
+
 std::size_t MovingScene::overlap_count(const Particle& trial, std::int64_t exclude) const {
-  const std::vector<Neighbor> near = neighbors(trial, 1.0, false, exclude);
-  return near.size();
+  return neighbors(trial, 1.0, false, exclude).size();
 }
 
 std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutoff, bool with_mu2,
-                                       std::int64_t exclude) const {
+                                             std::int64_t exclude) const {
   const Impl& s = *impl_;
   if (!(cutoff > 0) || !std::isfinite(cutoff) || !(cutoff * cutoff >= std::numeric_limits<double>::min()))
     throw std::invalid_argument("MovingScene::neighbors: the cutoff must be positive and finite, got " +
                                 std::to_string(cutoff));
   s.check_box(std::max(trial.bounding_radius(), s.grid_radius), cutoff, "MovingScene::neighbors");
-  const Sided t = trial_side(trial);
-  screen::Side ts = t.side;
-  ts.q = t.q;
+  const TrialSide t(trial);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Neighbor> out;
   Pending pending(64);
-  s.for_each_near(trial, cutoff, exclude, [&](std::uint32_t i, const double r[3], double rr) {
-    Sided m = s.sided(i);
-    m.side.q = m.q;
-    double mu2 = 0;
-    switch (screen::decide_near_pair(ts, m.side, r, rr, cutoff, with_mu2, mu2)) {
-      case screen::NearPair::spheres:
-      case screen::NearPair::same_form:
-        if (mu2 < cutoff * cutoff) out.push_back({i, with_mu2 ? mu2 : nan});
-        break;
-      case screen::NearPair::in:
-        out.push_back({i, nan});
-        break;
-      case screen::NearPair::out_by_projection:
-        break;
-      case screen::NearPair::undecided:
-        pending.add(0, i, r, t.q, m.q);
-        break;
-    }
-    return true;
-  });
+  s.for_each_near(trial, cutoff, exclude,
+                  [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
+                    double mu2 = 0;
+                    switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr,
+                                                     cutoff, with_mu2, mu2)) {
+                      case screen::NearPair::spheres:
+                      case screen::NearPair::same_form:
+                        if (mu2 < cutoff * cutoff) out.push_back({i, with_mu2 ? mu2 : nan});
+                        break;
+                      case screen::NearPair::in:
+                        out.push_back({i, nan});
+                        break;
+                      case screen::NearPair::out_by_projection:
+                        break;
+                      case screen::NearPair::undecided:
+                        pending.add(0, i, r, t.q, d.q);
+                        break;
+                    }
+                    return true;
+                  });
   const std::size_t n = pending.size();
   if (n > 0) {
-    BatchOptions options = s.solve_options;
+    const BatchOptions& options = s.solve_options;
     std::vector<Status> status(n);
     if (with_mu2) {
       std::vector<double> mu2(n);
@@ -670,71 +746,31 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
 }
 
 void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, std::size_t count,
-                     std::int64_t* first_overlap, int threads) const {
+                           std::int64_t* first_overlap, int threads) const {
   const Impl& s = *impl_;
   detail::ParallelErrors errors;
-  // Trials in blocks per thread: each block's undecided pairs (up to each
-  // trial's first decided overlap) solved in one call, across trials.
+  // Trials in blocks per thread: each block's undecided pairs solved in
+  // calls of many pairs, the SIMD lanes across trials.
   constexpr std::size_t block = 64;
   const std::size_t blocks = (count + block - 1) / block;
 #pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads())
   {
     Pending pending(batch_solve_pairs);
-    std::vector<std::int64_t> decided(block);
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t b = 0; b < blocks; ++b) errors.run([&] {
       detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
       const std::size_t begin = b * block, end = std::min(count, begin + block);
       pending.clear();
-      // Answers the pending pairs, and the trials of [from, to) with them.
-      auto finish = [&](std::size_t from, std::size_t to) {
-        if (pending.size() > 0) pending.solve(solver);
-        std::vector<bool> answered(to - from, false);
-        for (std::size_t k = 0; k < pending.size(); ++k) {
-          const std::size_t t = pending.trial[k];
-          if (pending.overlap[k] && !answered[t - from]) {
-            first_overlap[t] = pending.index[k];
-            answered[t - from] = true;
-          }
-        }
-        for (std::size_t t = from; t < to; ++t)
-          if (!answered[t - from]) first_overlap[t] = decided[t - begin];
-        pending.clear();
-      };
-      std::size_t from = begin;
-      for (std::size_t t = begin; t < end; ++t) {
-        const Particle& trial = trials[t];
-        const Sided ts_copy = trial_side(trial);
-        screen::Side ts = ts_copy.side;
-        ts.q = ts_copy.q;
-        decided[t - begin] = none;
-        s.for_each_near(trial, 1.0, exclude ? exclude[t] : none,
-                        [&](std::uint32_t i, const double r[3], double rr) {
-          Sided m = s.sided(i);
-          m.side.q = m.q;
-          double mu2 = 0;
-          switch (screen::decide_near_pair(ts, m.side, r, rr, 1.0, false, mu2)) {
-            case screen::NearPair::spheres:
-            case screen::NearPair::same_form:
-              if (!(mu2 < 1)) return true;
-              [[fallthrough]];
-            case screen::NearPair::in:
-              decided[t - begin] = i;
-              return false;
-            case screen::NearPair::out_by_projection:
-              return true;
-            case screen::NearPair::undecided:
-              pending.add(std::uint32_t(t), i, r, ts_copy.q, m.q);
-              return true;
-          }
-          return true;
-        });
-        if (pending.size() >= batch_solve_pairs) {
-          finish(from, t + 1);
-          from = t + 1;
-        }
+      for (std::size_t t = begin; t < end; ++t)
+        first_overlap[t] = prefilter_trial(s, trials[t], std::uint32_t(t), exclude ? exclude[t] : none,
+                                           pending);
+      // The first overlapping pair of each trial without a decided answer.
+      for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
+        const std::size_t n = std::min(solver.capacity(), pending.size() - at);
+        pending.solve(solver, at, n);
       }
-      finish(from, end);
+      for (std::size_t k = pending.size(); k-- > 0;)
+        if (pending.overlap[k]) first_overlap[pending.trial[k]] = pending.index[k];
     });
   }
   errors.rethrow_if_failed();

@@ -1,0 +1,424 @@
+// pwcontact_moves: trial-move queries on a moving scene, as hard-particle
+// Monte Carlo asks them, timed with Google Benchmark:
+//   moves/single/<order>/packing:P       MovingScene::overlaps for one trial
+//                                        (a translation of up to 0.1 and a
+//                                        turn of up to 0.1 rad of one
+//                                        particle), then MovingScene::move when
+//                                        it overlaps nothing; one thread. The
+//                                        scene: the demo's (1M spheroids,
+//                                        aspect ratios 1/3 .. 3, random, with
+//                                        overlaps) at packing 0.3, or a hard
+//                                        packing at 0.5 (4^3 periodic copies of
+//                                        the Monte Carlo example's packed state
+//                                        of 15,625 spheroids). <order>: trials
+//                                        in the order of the scene's cells (a
+//                                        sweep, as a checkerboard domain runs
+//                                        them) or of random particles.
+//   moves/batched/packing:P/threads:T    the same trials, one per domain of a
+//                                        checkerboard (every fourth cell along
+//                                        each axis), by the batched query and
+//                                        move_many: the sweep of the Monte
+//                                        Carlo example
+//   fcl/single/packing:P                 FCL's DynamicAABBTreeCollisionManager
+//                                        with fcl::Ellipsoidd objects: per
+//                                        trial, the object moved (update) and
+//                                        collide until the first contact, the
+//                                        move undone when it collides; the same
+//                                        trials, those of particles away from
+//                                        the faces (FCL has no periodic box).
+// then a summary: queries per second, the ratio to FCL on the same trials
+// (target >= 20), FCL's answers that disagree with the exact mu^2 (and how
+// many of those pairs are within 1e-9 of tangency), and the 2-thread
+// batched sweep over 1 thread (target >= 1.8).
+#include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "pwcontact/pwcontact.hpp"
+
+#ifdef PWCONTACT_WITH_FCL
+#include <fcl/fcl.h>
+#endif
+
+namespace {
+
+using pwcontact::MovingScene;
+using pwcontact::ParticleStore;
+using Particle = ParticleStore::Particle;
+
+constexpr std::size_t particles = 1000000;
+constexpr std::size_t trials_per_iteration = 200000;
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// A scene with the semi-axes and orientations its particles were made from.
+struct World {
+  pwcontact::SpheroidScene scene;
+};
+
+// q1 q2 (Hamilton product, (w, x, y, z)).
+std::array<double, 4> multiply(const std::array<double, 4>& a, const std::array<double, 4>& b) {
+  return {a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+          a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+          a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+          a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
+}
+
+// The packed state at 0.5: the Monte Carlo example's (pwcontact mc --n 15625
+// --packing 0.5) as 4^3 periodic copies; the demo's scene at 0.3.
+const World& world(double packing) {
+  static std::map<double, World> worlds;
+  auto found = worlds.find(packing);
+  if (found != worlds.end()) return found->second;
+  World w;
+  if (packing < 0.4) {
+    w.scene = pwcontact::spheroid_scene(particles, 1, 0.3, 3);
+  } else {
+    pwcontact::HardParticleMCOptions options;
+    options.packing = 0.5;
+    options.seed = 1;
+    pwcontact::HardParticleMC mc = pwcontact::HardParticleMC::dilute_spheroids(15625, 1, 3, options);
+    mc.compress_to_packing();
+    const ParticleStore& small = mc.particles();
+    const double l = mc.box().length[0];
+    pwcontact::SpheroidScene& s = w.scene;
+    s.box = pwcontact::Box::periodic_box(4 * l, 4 * l, 4 * l);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int c = 0; c < 4; ++c)
+          for (std::size_t i = 0; i < small.size(); ++i) {
+            const std::array<double, 3> centre = {small.centre(0)[i] + a * l, small.centre(1)[i] + b * l,
+                                                  small.centre(2)[i] + c * l};
+            s.particles.add_axes(centre, mc.semi_axes()[i], mc.orientation()[i]);
+            s.semi_axes.push_back(mc.semi_axes()[i]);
+            s.orientation.push_back(mc.orientation()[i]);
+          }
+  }
+  return worlds.emplace(packing, std::move(w)).first->second;
+}
+
+struct Trial {
+  std::uint32_t index;
+  std::array<double, 3> centre;
+  std::array<double, 4> orientation;
+};
+
+// Trial moves of the particles (a translation of up to 0.1 along each axis
+// and a turn by up to 0.1 rad about a random axis), in sweep order (by the
+// scene's cells) or random order; `interior`: only particles at least 3
+// from every face (where FCL, without a periodic box, sees what we see).
+std::vector<Trial> make_trials(const World& w, const MovingScene& scene, bool sweep_order,
+                               bool interior, std::size_t count) {
+  std::mt19937_64 engine(7);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  const ParticleStore& s = w.scene.particles;
+  const double l = w.scene.box.length[0];
+  std::vector<std::uint32_t> order;
+  for (std::uint32_t i = 0; i < s.size(); ++i) {
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) {
+      const double x = s.centre(k)[i] - l * std::floor(s.centre(k)[i] / l);
+      inside = inside && x > 3 && x < l - 3;
+    }
+    if (!interior || inside) order.push_back(i);
+  }
+  if (sweep_order) {
+    std::vector<std::uint64_t> key(s.size());
+    for (std::uint32_t i : order) {
+      const auto c = scene.cell_of_particle(i);
+      key[i] = (std::uint64_t(c[0]) << 40) | (std::uint64_t(c[1]) << 20) | std::uint64_t(c[2]);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+  } else {
+    std::shuffle(order.begin(), order.end(), engine);
+  }
+  std::vector<Trial> trials;
+  for (std::size_t k = 0; trials.size() < count; ++k) {
+    const std::uint32_t i = order[k % order.size()];
+    Trial t;
+    t.index = i;
+    for (int d = 0; d < 3; ++d) t.centre[d] = s.centre(d)[i] + 0.1 * (2 * unit(engine) - 1);
+    const double angle = 0.1 * unit(engine);
+    double axis[3] = {normal(engine), normal(engine), normal(engine)};
+    const double norm = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+    const std::array<double, 4> turn = {std::cos(angle / 2), std::sin(angle / 2) * axis[0] / norm,
+                                        std::sin(angle / 2) * axis[1] / norm,
+                                        std::sin(angle / 2) * axis[2] / norm};
+    t.orientation = multiply(turn, w.scene.orientation[i]);
+    trials.push_back(t);
+  }
+  return trials;
+}
+
+std::map<std::string, std::vector<double>>& rates() {
+  static std::map<std::string, std::vector<double>> r;
+  return r;
+}
+std::map<std::string, double>& facts() {
+  static std::map<std::string, double> f;
+  return f;
+}
+
+std::string packing_name(double packing) { return packing < 0.4 ? "0.3" : "0.5"; }
+
+// Our answers on the interior trials of a fresh scene (for FCL's agreement).
+std::vector<char> our_answers;
+
+void single_benchmark(benchmark::State& state, double packing, bool sweep_order, bool interior) {
+  const World& w = world(packing);
+  const std::string name = std::string(interior ? "moves/interior/" : "moves/single/") +
+                           (sweep_order ? "sweep" : "random") + "/packing:" + packing_name(packing);
+  std::size_t accepted = 0, queries = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    MovingScene scene(w.scene.particles, w.scene.box);
+    const std::vector<Trial> trials = make_trials(w, scene, sweep_order, interior, trials_per_iteration);
+    std::vector<Particle> made;
+    made.reserve(trials.size());
+    for (const Trial& t : trials)
+      made.push_back(ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
+    std::vector<char> answers(interior ? trials.size() : 0);
+    state.ResumeTiming();
+    const double start = now();
+    for (std::size_t k = 0; k < made.size(); ++k) {
+      const std::int64_t hit = scene.overlaps(made[k], trials[k].index);
+      if (hit == MovingScene::none) {
+        scene.move(trials[k].index, made[k]);
+        ++accepted;
+      }
+      if (interior) answers[k] = hit != MovingScene::none;
+    }
+    const double seconds = now() - start;
+    queries += made.size();
+    rates()[name].push_back(double(made.size()) / seconds);
+    if (interior) our_answers = answers;
+  }
+  state.counters["queries_per_s"] =
+      benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+  state.counters["acceptance"] = double(accepted) / double(queries);
+}
+
+// Every fourth cell along each axis holds one trial per round (a
+// checkerboard's independent domains): batched queries, then move_many.
+void batched_benchmark(benchmark::State& state, double packing, int threads) {
+  const World& w = world(packing);
+  const std::string name = "moves/batched/packing:" + packing_name(packing) + "/threads:" +
+                           std::to_string(threads);
+  std::size_t queries = 0, accepted = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    MovingScene scene(w.scene.particles, w.scene.box);
+    const std::vector<Trial> trials = make_trials(w, scene, true, false, trials_per_iteration);
+    // Rounds: in each, at most one trial per domain of the round's colour.
+    std::vector<std::vector<std::uint32_t>> rounds;
+    {
+      std::map<std::pair<int, std::array<int, 3>>, std::size_t> used;  // (colour, domain) -> trials
+      for (std::uint32_t k = 0; k < trials.size(); ++k) {
+        const auto c = scene.cell_of_particle(trials[k].index);
+        const auto to = scene.cell_of(trials[k].centre);
+        if (c != to) continue;  // a trial that leaves its cell: not in this sweep
+        const int colour = (c[0] % 4 == 0) + 2 * (c[1] % 4 == 0) + 4 * (c[2] % 4 == 0);
+        if (colour != 7) continue;
+        const std::size_t round = used[{colour, c}]++;
+        if (rounds.size() <= round) rounds.resize(round + 1);
+        rounds[round].push_back(k);
+      }
+    }
+    std::vector<Particle> made;
+    for (const Trial& t : trials)
+      made.push_back(ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
+    state.ResumeTiming();
+    const double start = now();
+    std::vector<Particle> batch_trials;
+    std::vector<std::int64_t> exclude, hit;
+    std::vector<std::uint32_t> moving;
+    std::vector<Particle> moved;
+    std::size_t done = 0;
+    for (const auto& round : rounds) {
+      batch_trials.clear();
+      exclude.clear();
+      for (std::uint32_t k : round) {
+        batch_trials.push_back(made[k]);
+        exclude.push_back(trials[k].index);
+      }
+      hit.resize(round.size());
+      scene.overlaps(batch_trials.data(), exclude.data(), round.size(), hit.data(), threads);
+      moving.clear();
+      moved.clear();
+      for (std::size_t m = 0; m < round.size(); ++m)
+        if (hit[m] == MovingScene::none) {
+          moving.push_back(trials[round[m]].index);
+          moved.push_back(made[round[m]]);
+        }
+      scene.move_many(moving.data(), moved.data(), moving.size(), threads);
+      accepted += moving.size();
+      done += round.size();
+    }
+    const double seconds = now() - start;
+    queries += done;
+    rates()[name].push_back(double(done) / seconds);
+  }
+  state.counters["queries_per_s"] = benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+  state.counters["acceptance"] = queries ? double(accepted) / double(queries) : 0;
+}
+
+#ifdef PWCONTACT_WITH_FCL
+// Contact within 1e-9 of tangency: the pair's mu^2 by the reference path.
+void fcl_benchmark(benchmark::State& state, double packing) {
+  const World& w = world(packing);
+  const std::string name = "fcl/single/packing:" + packing_name(packing);
+  const ParticleStore& s = w.scene.particles;
+  std::size_t queries = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const MovingScene scene(s, w.scene.box);
+    const std::vector<Trial> trials = make_trials(w, scene, true, true, trials_per_iteration);
+    std::vector<std::unique_ptr<fcl::CollisionObjectd>> objects;
+    std::vector<fcl::CollisionObjectd*> pointers;
+    auto transform = [](const std::array<double, 3>& c, const std::array<double, 4>& q) {
+      fcl::Transform3d t = fcl::Transform3d::Identity();
+      t.linear() = fcl::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+      t.translation() = fcl::Vector3d(c[0], c[1], c[2]);
+      return t;
+    };
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const auto& a = w.scene.semi_axes[i];
+      auto geometry = std::make_shared<fcl::Ellipsoidd>(a[0], a[1], a[2]);
+      objects.push_back(std::make_unique<fcl::CollisionObjectd>(
+          geometry, transform({s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]}, w.scene.orientation[i])));
+      objects.back()->setUserData(reinterpret_cast<void*>(i));
+      pointers.push_back(objects.back().get());
+    }
+    fcl::DynamicAABBTreeCollisionManagerd manager;
+    manager.registerObjects(pointers);
+    manager.setup();
+    std::vector<fcl::Transform3d> current(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) current[i] = objects[i]->getTransform();
+    struct Query {
+      fcl::CollisionObjectd* self;
+      bool hit = false;
+    };
+    std::vector<char> answers(trials.size());
+    state.ResumeTiming();
+    const double start = now();
+    for (std::size_t k = 0; k < trials.size(); ++k) {
+      fcl::CollisionObjectd* o = objects[trials[k].index].get();
+      const fcl::Transform3d moved = transform(trials[k].centre, trials[k].orientation);
+      o->setTransform(moved);
+      o->computeAABB();
+      manager.update(o);
+      Query query{o};
+      manager.collide(o, &query, [](fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
+        Query& q = *static_cast<Query*>(data);
+        if (a == b) return false;
+        fcl::CollisionRequestd request;
+        fcl::CollisionResultd result;
+        fcl::collide(a, b, request, result);
+        q.hit = result.isCollision();
+        return q.hit;  // stop at the first contact
+      });
+      answers[k] = query.hit;
+      if (query.hit) {
+        o->setTransform(current[trials[k].index]);
+        o->computeAABB();
+        manager.update(o);
+      } else {
+        current[trials[k].index] = moved;
+      }
+    }
+    const double seconds = now() - start;
+    queries += trials.size();
+    rates()[name].push_back(double(trials.size()) / seconds);
+    // Agreement with our answers on the same trials (ours are exact).
+    if (our_answers.size() == answers.size()) {
+      std::size_t differ = 0;
+      for (std::size_t k = 0; k < answers.size(); ++k) differ += answers[k] != our_answers[k];
+      facts()["fcl_disagreements/packing:" + packing_name(packing)] = double(differ);
+    }
+  }
+  state.counters["queries_per_s"] = benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+}
+#endif
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+void print_summary() {
+  std::printf("\nSummary (medians of the repetitions of this run):\n");
+  for (const auto& [name, r] : rates())
+    std::printf("  %-40s %8.3f M queries/s (%zu runs)\n", name.c_str(), median(r) / 1e6, r.size());
+  for (const char* p : {"0.3", "0.5"}) {
+    const std::string packing = std::string("packing:") + p;
+    auto get = [&](const std::string& n) {
+      auto f = rates().find(n);
+      return f == rates().end() ? NAN : median(f->second);
+    };
+    const double single = get("moves/single/sweep/" + packing);
+    const double random = get("moves/single/random/" + packing);
+    const double interior = get("moves/interior/sweep/" + packing);
+    const double fcl = get("fcl/single/" + packing);
+    const double one = get("moves/batched/" + packing + "/threads:1");
+    const double two = get("moves/batched/" + packing + "/threads:2");
+    if (!std::isnan(single))
+      std::printf("  %s: single queries %.2f M/s in sweep order, %.2f M/s in random order "
+                  "(target >= 3 M/s per core): %s\n",
+                  packing.c_str(), single / 1e6, random / 1e6, single >= 3e6 ? "met" : "NOT met");
+    if (!std::isnan(fcl))
+      std::printf("  %s: against FCL on the same interior trials: %.1fx (target >= 20x): %s; "
+                  "FCL disagrees with the exact answer on %.0f of %zu trials\n",
+                  packing.c_str(), interior / fcl, interior / fcl >= 20 ? "met" : "NOT met",
+                  facts()["fcl_disagreements/" + packing], trials_per_iteration);
+    if (!std::isnan(two))
+      std::printf("  %s: batched checkerboard sweep, 2 threads over 1: %.2fx (target >= 1.8x): %s\n",
+                  packing.c_str(), two / one, two / one >= 1.8 ? "met" : "NOT met");
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  for (double packing : {0.3, 0.5}) {
+    const std::string p = packing_name(packing);
+    for (bool sweep : {true, false})
+      benchmark::RegisterBenchmark(
+          (std::string("moves/single/") + (sweep ? "sweep" : "random") + "/packing:" + p).c_str(),
+          single_benchmark, packing, sweep, false)
+          ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("moves/interior/sweep/packing:" + p).c_str(), single_benchmark,
+                                 packing, true, true)
+        ->Unit(benchmark::kMillisecond);
+#ifdef PWCONTACT_WITH_FCL
+    benchmark::RegisterBenchmark(("fcl/single/packing:" + p).c_str(), fcl_benchmark, packing)
+        ->Unit(benchmark::kMillisecond)
+        ->Iterations(1);
+#endif
+    for (int threads : {1, 2})
+      benchmark::RegisterBenchmark(
+          ("moves/batched/packing:" + p + "/threads:" + std::to_string(threads)).c_str(),
+          batched_benchmark, packing, threads)
+          ->Unit(benchmark::kMillisecond);
+  }
+  benchmark::RunSpecifiedBenchmarks();
+  print_summary();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,371 @@
+// Hard-particle Monte Carlo on a MovingScene (monte_carlo.hpp).
+#include "pwcontact/monte_carlo.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "pwcontact/ellipsoid.hpp"
+
+namespace pwcontact {
+namespace {
+
+constexpr double pi = 3.14159265358979323846;
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// A random stream per (seed, sweep, purpose, domain): splitmix64 of their mix.
+std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
+  std::uint64_t z = a + 0x9E3779B97F4A7C15ull * (b + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+double uniform01(std::mt19937_64& engine) {
+  return double(engine() >> 11) * 0x1.0p-53;
+}
+
+// q1 q2 (Hamilton product, (w, x, y, z)).
+std::array<double, 4> multiply(const std::array<double, 4>& a, const std::array<double, 4>& b) {
+  return {a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+          a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+          a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+          a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
+}
+
+// A turn by an angle uniform in [0, largest] about a uniformly random axis,
+// composed with q and normalised (so that orientations do not drift).
+std::array<double, 4> turned(const std::array<double, 4>& q, double largest,
+                             std::mt19937_64& engine) {
+  double axis[3], norm2;
+  do {
+    for (double& x : axis) x = 2 * uniform01(engine) - 1;
+    norm2 = axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2];
+  } while (norm2 > 1 || norm2 < 1e-6);
+  const double half = largest * uniform01(engine) / 2, s = std::sin(half) / std::sqrt(norm2);
+  std::array<double, 4> out = multiply({std::cos(half), s * axis[0], s * axis[1], s * axis[2]}, q);
+  const double n = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]);
+  for (double& x : out) x /= n;
+  return out;
+}
+
+}  // namespace
+
+struct HardParticleMC::State {
+  Box box;
+  std::vector<std::array<double, 3>> semi_axes;
+  std::vector<std::array<double, 4>> orientation;
+  HardParticleMCOptions options;
+  std::unique_ptr<MovingScene> scene;
+  double volume = 0;  // of the particles
+  double translation = 0, rotation = 0;
+  std::size_t sweeps = 0;
+
+  int threads() const { return options.threads > 0 ? options.threads : omp_get_max_threads(); }
+
+  void make_scene(const std::vector<std::array<double, 3>>& centre) {
+    ParticleStore store;
+    store.reserve(centre.size());
+    for (std::size_t i = 0; i < centre.size(); ++i)
+      store.add_axes(centre[i], semi_axes[i], orientation[i]);
+    MovingSceneOptions o;
+    o.batch = options.batch;
+    scene = std::make_unique<MovingScene>(std::move(store), box, o);
+  }
+
+  std::vector<std::array<double, 3>> centres() const {
+    const ParticleStore& s = scene->particles();
+    std::vector<std::array<double, 3>> c(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) c[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
+    return c;
+  }
+
+  double box_volume() const { return box.length[0] * box.length[1] * box.length[2]; }
+};
+
+HardParticleMC::HardParticleMC(const Box& box, std::vector<std::array<double, 3>> centre,
+                               std::vector<std::array<double, 3>> semi_axes,
+                               std::vector<std::array<double, 4>> orientation,
+                               const HardParticleMCOptions& options)
+    : state_(new State) {
+  if (!box.periodic || box.two_dimensional)
+    throw std::invalid_argument("HardParticleMC: needs a periodic three-dimensional box");
+  if (centre.size() != semi_axes.size() || centre.size() != orientation.size())
+    throw std::invalid_argument("HardParticleMC: " + std::to_string(centre.size()) + " centres, " +
+                                std::to_string(semi_axes.size()) + " semi-axes and " +
+                                std::to_string(orientation.size()) + " orientations");
+  if (!(options.packing > 0 && options.packing < 1))
+    throw std::invalid_argument("HardParticleMC: the packing fraction must be in (0, 1), got " +
+                                std::to_string(options.packing));
+  if (!(options.translation > 0) || !std::isfinite(options.translation) || !(options.rotation >= 0) ||
+      !std::isfinite(options.rotation))
+    throw std::invalid_argument("HardParticleMC: step sizes must be finite, the translation positive");
+  if (options.threads < 0) throw std::invalid_argument("HardParticleMC: threads must be >= 0");
+  State& s = *state_;
+  s.box = box;
+  s.semi_axes = std::move(semi_axes);
+  s.orientation = std::move(orientation);
+  s.options = options;
+  s.translation = options.translation;
+  s.rotation = options.rotation;
+  s.make_scene(centre);
+  for (const auto& a : s.semi_axes) s.volume += 4.0 / 3.0 * pi * a[0] * a[1] * a[2];
+}
+
+HardParticleMC::~HardParticleMC() = default;
+HardParticleMC::HardParticleMC(HardParticleMC&&) noexcept = default;
+HardParticleMC& HardParticleMC::operator=(HardParticleMC&&) noexcept = default;
+
+HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t seed, double max_aspect,
+                                                const HardParticleMCOptions& options) {
+  if (n == 0) throw std::invalid_argument("HardParticleMC: no particles");
+  if (!(max_aspect >= 1) || !std::isfinite(max_aspect))
+    throw std::invalid_argument("HardParticleMC: the largest aspect ratio must be >= 1");
+  std::mt19937_64 engine(mix(seed, 0x5eed));
+  std::vector<std::array<double, 3>> axes(n), centre(n);
+  std::vector<std::array<double, 4>> orientation(n);
+  double largest = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double aspect = std::exp(std::log(max_aspect) * (2 * uniform01(engine) - 1));
+    const double a = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
+    axes[i] = {a, a, a * aspect};
+    largest = std::max({largest, a, a * aspect});
+    std::array<double, 4> q;
+    double norm2;
+    do {
+      for (double& x : q) x = 2 * uniform01(engine) - 1;
+      norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    } while (norm2 > 1 || norm2 < 1e-6);
+    for (double& x : q) x /= std::sqrt(norm2);
+    orientation[i] = q;
+  }
+  std::size_t side = 1;
+  while (side * side * side < n) ++side;
+  const double spacing = 1.02 * 2 * largest, length = spacing * double(side);
+  for (std::size_t i = 0; i < n; ++i)
+    centre[i] = {spacing * (double(i % side) + 0.5), spacing * (double(i / side % side) + 0.5),
+                 spacing * (double(i / (side * side)) + 0.5)};
+  return HardParticleMC(Box::periodic_box(length, length, length), std::move(centre), std::move(axes),
+                        std::move(orientation), options);
+}
+
+SweepReport HardParticleMC::sweep() {
+  State& s = *state_;
+  const double start = now();
+  MovingScene& scene = *s.scene;
+  const ParticleStore& store = scene.particles();
+  const std::size_t n = store.size();
+  if (n == 0) return {};
+  const std::array<int, 3> cells = scene.cells();
+  const std::uint64_t sweep_seed = mix(s.options.seed, s.sweeps);
+  // The grouping of cells into domains, shifted by 0 or 1 cell per axis.
+  std::mt19937_64 shift_engine(mix(sweep_seed, 0x5417));
+  int offset[3], domains[3];
+  for (int k = 0; k < 3; ++k) {
+    offset[k] = int(shift_engine() & 1);
+    domains[k] = (cells[k] + 1) / 2;
+  }
+  auto domain_along = [&](int k, int c) { return ((c + offset[k]) % cells[k]) / 2; };
+  auto colour_along = [&](int k, int d) {
+    if (domains[k] == 1) return 0;
+    return (domains[k] % 2 == 1 && d == domains[k] - 1) ? 2 : d % 2;
+  };
+  auto domain_of = [&](const std::array<int, 3>& c) {
+    return (std::size_t(domain_along(0, c[0])) * std::size_t(domains[1]) +
+            std::size_t(domain_along(1, c[1]))) * std::size_t(domains[2]) +
+           std::size_t(domain_along(2, c[2]));
+  };
+  const std::size_t domain_count = std::size_t(domains[0]) * domains[1] * domains[2];
+  // Particles by domain (they stay in it: moves that leave are rejected).
+  std::vector<std::uint32_t> start_of(domain_count + 1, 0), member(n), domain_of_particle(n);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    domain_of_particle[i] = std::uint32_t(domain_of(scene.cell_of_particle(i)));
+    ++start_of[domain_of_particle[i] + 1];
+  }
+  for (std::size_t d = 0; d < domain_count; ++d) start_of[d + 1] += start_of[d];
+  {
+    std::vector<std::uint32_t> fill(start_of.begin(), start_of.end() - 1);
+    for (std::uint32_t i = 0; i < n; ++i) member[fill[domain_of_particle[i]]++] = i;
+  }
+  // Domains by colour.
+  std::vector<std::vector<std::uint32_t>> by_colour(27);
+  for (int a = 0; a < domains[0]; ++a)
+    for (int b = 0; b < domains[1]; ++b)
+      for (int c = 0; c < domains[2]; ++c) {
+        const std::size_t d = (std::size_t(a) * domains[1] + b) * domains[2] + c;
+        if (start_of[d + 1] == start_of[d]) continue;
+        by_colour[colour_along(0, a) * 9 + colour_along(1, b) * 3 + colour_along(2, c)].push_back(
+            std::uint32_t(d));
+      }
+
+  SweepReport report;
+  const int threads = s.threads();
+  std::vector<std::mt19937_64> engines;
+  std::vector<MovingScene::Particle> trials;
+  std::vector<std::uint32_t> trial_particle, query_slot, moving;
+  std::vector<std::uint8_t> wants_query;
+  std::vector<std::array<double, 4>> trial_orientation;
+  std::vector<std::int64_t> exclude, hit;
+  std::vector<MovingScene::Particle> query_trials, moved;
+  for (int colour = 0; colour < 27; ++colour) {
+    const std::vector<std::uint32_t>& active = by_colour[colour];
+    if (active.empty()) continue;
+    const std::size_t m = active.size();
+    engines.clear();
+    std::size_t rounds = 0;
+    for (std::uint32_t d : active) {
+      engines.emplace_back(mix(sweep_seed, (std::uint64_t(colour) << 40) ^ d));
+      rounds = std::max<std::size_t>(rounds, start_of[d + 1] - start_of[d]);
+    }
+    // Trials are made from the store while nothing moves (the store's
+    // particles are read only between move_many calls).
+    trials.assign(m, store.particle_at(0));
+    trial_particle.assign(m, 0);
+    wants_query.assign(m, 0);
+    trial_orientation.assign(m, {1, 0, 0, 0});
+    for (std::size_t round = 0; round < rounds; ++round) {
+      std::size_t left = 0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : left)
+      for (std::size_t k = 0; k < m; ++k) {
+        const std::uint32_t d = active[k];
+        wants_query[k] = 0;
+        if (round >= start_of[d + 1] - start_of[d]) continue;
+        std::mt19937_64& engine = engines[k];
+        const std::size_t count = start_of[d + 1] - start_of[d];
+        const std::uint32_t i = member[start_of[d] + std::size_t(uniform01(engine) * double(count))];
+        std::array<double, 3> centre = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
+        for (double& x : centre) x += s.translation * (2 * uniform01(engine) - 1);
+        const std::array<double, 4> q = s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine)
+                                                       : s.orientation[i];
+        if (domain_of(scene.cell_of(centre)) != d) {
+          ++left;
+          continue;
+        }
+        trials[k] = ParticleStore::particle_axes(centre, s.semi_axes[i], q);
+        trial_particle[k] = i;
+        trial_orientation[k] = q;
+        wants_query[k] = 1;
+      }
+      report.left_domain += left;
+      query_trials.clear();
+      exclude.clear();
+      query_slot.clear();
+      for (std::size_t k = 0; k < m; ++k) {
+        if (round < start_of[active[k] + 1] - start_of[active[k]]) ++report.proposed;
+        if (!wants_query[k]) continue;
+        query_trials.push_back(trials[k]);
+        exclude.push_back(trial_particle[k]);
+        query_slot.push_back(std::uint32_t(k));
+      }
+      hit.resize(query_trials.size());
+      scene.overlaps(query_trials.data(), exclude.data(), query_trials.size(), hit.data(), threads);
+      moving.clear();
+      moved.clear();
+      for (std::size_t q = 0; q < hit.size(); ++q) {
+        if (hit[q] != MovingScene::none) continue;
+        const std::size_t k = query_slot[q];
+        moving.push_back(trial_particle[k]);
+        moved.push_back(query_trials[q]);
+        s.orientation[trial_particle[k]] = trial_orientation[k];
+      }
+      scene.move_many(moving.data(), moved.data(), moving.size(), threads);
+      report.accepted += moving.size();
+    }
+  }
+  ++s.sweeps;
+  if (s.options.adapt_steps && report.proposed > 0) {
+    // Towards 30 % acceptance, by at most a factor 1.5 per sweep; the
+    // translation at most a quarter of the largest bounding radius.
+    const double acceptance = double(report.accepted) / double(report.proposed);
+    const double factor = std::min(1.5, std::max(0.5, acceptance / 0.3));
+    double largest = 0;
+    for (const auto& a : s.semi_axes) largest = std::max({largest, a[0], a[1], a[2]});
+    s.translation = std::min(largest / 4, std::max(1e-9, s.translation * factor));
+    s.rotation = std::min(pi, std::max(1e-9, s.rotation * factor));
+  }
+  report.seconds = now() - start;
+  return report;
+}
+
+std::size_t HardParticleMC::overlapping_pairs() const {
+  ScreenedPairs pairs;
+  ScreenOptions options;
+  options.threads = state_->options.threads;
+  options.batch = state_->options.batch;
+  screen_pairs(state_->scene->particles(), state_->box, options, pairs);
+  return pairs.size();
+}
+
+double HardParticleMC::compress() {
+  State& s = *state_;
+  const double target = s.options.packing;
+  const double now_packing = packing();
+  if (now_packing >= target) return now_packing;
+  ScreenedPairs pairs;
+  ScreenOptions options;
+  options.cutoff = 1.1;
+  options.with_mu2 = true;
+  options.threads = s.options.threads;
+  options.batch = s.options.batch;
+  screen_pairs(s.scene->particles(), s.box, options, pairs);
+  double mu2_min = 1.21;
+  for (double m : pairs.mu2) mu2_min = std::min(mu2_min, m);
+  if (!(mu2_min >= 1))
+    throw std::logic_error("HardParticleMC::compress: the state overlaps (mu^2 " +
+                           std::to_string(mu2_min) + ")");
+  // Closer than 1e-6 to contact: no room (nor trust in the last digits).
+  const double mu_min = std::sqrt(mu2_min);
+  if (mu_min < 1 + 1e-6) return now_packing;
+  const double s_target = std::cbrt(now_packing / target);
+  const double scale = std::max(s_target, 1 / std::sqrt(mu_min));
+  Box box = s.box;
+  for (double& l : box.length) l *= scale;
+  std::vector<std::array<double, 3>> centre = s.centres();
+  for (auto& c : centre)
+    for (double& x : c) x *= scale;
+  s.box = box;
+  s.make_scene(centre);
+  return packing();
+}
+
+void HardParticleMC::compress_to_packing(
+    std::size_t max_sweeps, const std::function<void(std::size_t, double, double)>& progress) {
+  State& s = *state_;
+  const double target = s.options.packing * (1 - 1e-12);
+  std::size_t done = 0;
+  while (packing() < target) {
+    if (done >= max_sweeps)
+      throw std::runtime_error("HardParticleMC: the packing fraction " + std::to_string(packing()) +
+                               " after " + std::to_string(done) + " sweeps, short of " +
+                               std::to_string(s.options.packing));
+    const SweepReport r = sweep();
+    ++done;
+    const std::size_t overlapping = overlapping_pairs();
+    if (overlapping != 0)
+      throw std::logic_error("HardParticleMC: " + std::to_string(overlapping) +
+                             " overlapping pairs after sweep " + std::to_string(s.sweeps));
+    compress();
+    if (progress)
+      progress(done, packing(), r.proposed ? double(r.accepted) / double(r.proposed) : 0);
+  }
+}
+
+const ParticleStore& HardParticleMC::particles() const { return state_->scene->particles(); }
+const Box& HardParticleMC::box() const { return state_->box; }
+const std::vector<std::array<double, 3>>& HardParticleMC::semi_axes() const { return state_->semi_axes; }
+const std::vector<std::array<double, 4>>& HardParticleMC::orientation() const { return state_->orientation; }
+double HardParticleMC::packing() const { return state_->volume / state_->box_volume(); }
+double HardParticleMC::translation() const { return state_->translation; }
+double HardParticleMC::rotation() const { return state_->rotation; }
+std::size_t HardParticleMC::sweeps() const { return state_->sweeps; }
+
+}  // namespace pwcontact
