@@ -8,9 +8,9 @@
 //                                        scene: the demo's (1M spheroids,
 //                                        aspect ratios 1/3 .. 3, random, with
 //                                        overlaps) at packing 0.3, or a hard
-//                                        packing at 0.5 (4^3 periodic copies of
+//                                        packing at 0.5 (10^3 periodic copies of
 //                                        the Monte Carlo example's packed state
-//                                        of 15,625 spheroids). <order>: trials
+//                                        of 1000 spheroids). <order>: trials
 //                                        in the order of the scene's cells (a
 //                                        sweep, as a checkerboard domain runs
 //                                        them) or of random particles.
@@ -76,8 +76,9 @@ std::array<double, 4> multiply(const std::array<double, 4>& a, const std::array<
           a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
 }
 
-// The packed state at 0.5: the Monte Carlo example's (pwcontact mc --n 15625
-// --packing 0.5) as 4^3 periodic copies; the demo's scene at 0.3.
+// The packed state at 0.5: the Monte Carlo example's (HardParticleMC from
+// 1000 spheroids on a dilute lattice, seed 1) as 10^3 periodic copies; the
+// demo's scene at 0.3.
 const World& world(double packing) {
   static std::map<double, World> worlds;
   auto found = worlds.find(packing);
@@ -89,15 +90,15 @@ const World& world(double packing) {
     pwcontact::HardParticleMCOptions options;
     options.packing = 0.5;
     options.seed = 1;
-    pwcontact::HardParticleMC mc = pwcontact::HardParticleMC::dilute_spheroids(15625, 1, 3, options);
+    pwcontact::HardParticleMC mc = pwcontact::HardParticleMC::dilute_spheroids(1000, 1, 3, options);
     mc.compress_to_packing();
     const ParticleStore& small = mc.particles();
     const double l = mc.box().length[0];
     pwcontact::SpheroidScene& s = w.scene;
-    s.box = pwcontact::Box::periodic_box(4 * l, 4 * l, 4 * l);
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b)
-        for (int c = 0; c < 4; ++c)
+    s.box = pwcontact::Box::periodic_box(10 * l, 10 * l, 10 * l);
+    for (int a = 0; a < 10; ++a)
+      for (int b = 0; b < 10; ++b)
+        for (int c = 0; c < 10; ++c)
           for (std::size_t i = 0; i < small.size(); ++i) {
             const std::array<double, 3> centre = {small.centre(0)[i] + a * l, small.centre(1)[i] + b * l,
                                                   small.centre(2)[i] + c * l};

@@ -19,7 +19,8 @@
 // are independent: the result is the same for every thread count. Each
 // domain proposes as many moves as it holds particles: one per particle per
 // sweep on average. Every (seed, sweep, colour, domain) has its own random
-// stream.
+// stream. A scene of fewer than 64 domains is swept one trial at a time
+// instead (n trials of random particles, one random stream per sweep).
 #pragma once
 
 #include <array>
@@ -60,28 +61,32 @@ class HardParticleMC {
                  std::vector<std::array<double, 4>> orientation,
                  const HardParticleMCOptions& options = {});
   // n spheroids (a^2 c = 0.5^3, aspect ratios c / a log-uniform in
-  // [1 / max_aspect, max_aspect], random orientations) on a simple cubic
+  // [1 / max_aspect, max_aspect], or with `shapes` > 0 drawn from that many
+  // log-spaced over the range; random orientations) on a simple cubic
   // lattice of spacing 1.02 times the largest diameter: a dilute state with
   // no overlap, packing fraction ~0.06 for max_aspect 3.
   static HardParticleMC dilute_spheroids(std::size_t n, std::uint64_t seed, double max_aspect,
-                                         const HardParticleMCOptions& options = {});
+                                         const HardParticleMCOptions& options = {},
+                                         std::size_t shapes = 0);
   ~HardParticleMC();
   HardParticleMC(HardParticleMC&&) noexcept;
   HardParticleMC& operator=(HardParticleMC&&) noexcept;
 
   SweepReport sweep();
-  // The box (and every centre) scaled by s = max(s_target, mu_min^(-1/2)),
+  // Checks the state by a full screen_pairs (std::logic_error on any
+  // overlap), then, short of the target packing fraction, scales
+  // the box (and every centre) by s = max(s_target, mu_min^(-1/2)),
   // where s_target reaches the options' packing fraction and mu_min is the
   // smallest mu of any pair (by screen_pairs with mu^2, cutoff 1.1; 1.1 when
-  // none is below): every pair's mu becomes mu s >= sqrt(mu_min) > 1, so no
-  // overlap arises. Returns the new packing fraction. Throws std::logic_error
-  // if the state overlaps already.
+  // none is below; no compression closer than 1e-6 to contact): every
+  // pair's mu becomes mu s >= sqrt(mu_min) > 1, so no overlap arises.
+  // Returns the packing fraction.
   double compress();
   // Sweeps and compressions in turn until the packing fraction is reached,
   // at most max_sweeps sweeps (std::runtime_error beyond, saying how far it
   // got); progress(sweeps done, packing, acceptance of the last sweep) after
-  // each, may be empty. Every sweep is followed by a full screen_pairs
-  // (overlapping_pairs) that must find nothing (std::logic_error otherwise).
+  // each, may be empty. Every sweep is followed by compress(), whose full
+  // screen_pairs must find no overlap (std::logic_error otherwise).
   void compress_to_packing(std::size_t max_sweeps = 100000,
                            const std::function<void(std::size_t, double, double)>& progress = {});
 
@@ -98,6 +103,7 @@ class HardParticleMC {
   std::size_t sweeps() const;
 
  private:
+  void finish_sweep(SweepReport& report, double start);
   struct State;
   std::unique_ptr<State> state_;
 };

@@ -22,6 +22,7 @@ enum class ExitStatus : int {
   success = 0,
   io_error = 1,     // an input cannot be opened or read, an output cannot be written
   usage_error = 2,  // bad command line, malformed input, an instruction set this CPU lacks
+  failed = 3,       // mc: the packing fraction not reached, or an overlap found
 };
 
 // A failure reported to the user: a message (and, for command-line mistakes,

@@ -74,31 +74,6 @@ std::string demo_options_help() {
   return demo_parser(options).help();
 }
 
-// A progress bar on standard error, shown only on a terminal and only once a
-// stage has taken more than a second.
-class ProgressBar {
- public:
-  explicit ProgressBar(const char* stage) : stage_(stage), shown_(isatty(STDERR_FILENO) == 1) {}
-  ~ProgressBar() {
-    if (drawn_) std::fputs("\r\033[K", stderr);
-  }
-  void update(double fraction) {
-    if (!shown_ || clock_.seconds() < 1) return;
-    constexpr int width = 40;
-    const int filled = int(std::clamp(fraction, 0.0, 1.0) * width);
-    std::fprintf(stderr, "\r%-28s [%.*s%*s] %3d %%", stage_, filled,
-                 "########################################", width - filled, "",
-                 int(fraction * 100));
-    std::fflush(stderr);
-    drawn_ = true;
-  }
-
- private:
-  const char* stage_;
-  bool shown_, drawn_ = false;
-  Stopwatch clock_;
-};
-
 bool parse_demo_only(const Arguments& arguments) {
   DemoOptions options;
   return demo_parser(options).parse(arguments);

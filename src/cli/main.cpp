@@ -17,7 +17,7 @@ namespace pwcontact::cli {
 namespace {
 
 const Subcommand* const subcommands[] = {&demo_subcommand, &screen_subcommand, &contact_subcommand,
-                                         &pairs_subcommand};
+                                         &pairs_subcommand, &mc_subcommand};
 
 const Subcommand* find_subcommand(std::string_view name) {
   for (const Subcommand* subcommand : subcommands)

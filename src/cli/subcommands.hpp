@@ -28,6 +28,7 @@ extern const Subcommand contact_subcommand;
 extern const Subcommand screen_subcommand;
 extern const Subcommand demo_subcommand;
 extern const Subcommand pairs_subcommand;
+extern const Subcommand mc_subcommand;
 
 // What `pwcontact SUBCOMMAND --help` prints: the subcommand's options help,
 // the status codes and the exit statuses.

@@ -239,7 +239,9 @@ std::string exit_status_text() {
          "  0  success (also when some pairs have an invalid status)\n"
          "  1  an input cannot be read or the output cannot be written\n"
          "  2  bad command line, malformed input line, or an instruction set\n"
-         "     this CPU lacks\n";
+         "     this CPU lacks\n"
+         "  3  mc only: the packing fraction was not reached within the sweeps\n"
+         "     allowed, or a screen found an overlap (nothing written)\n";
 }
 
 std::string full_help(const Subcommand& subcommand) {

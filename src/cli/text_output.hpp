@@ -3,6 +3,8 @@
 // help text and summaries (status codes, exit statuses, times and rates).
 #pragma once
 
+#include <unistd.h>
+
 #include <omp.h>
 
 #include <algorithm>
@@ -109,6 +111,33 @@ class Stopwatch {
  private:
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
+
+// A progress bar on standard error, shown only on a terminal and only once a
+// stage has taken more than a second.
+class ProgressBar {
+ public:
+  explicit ProgressBar(const char* stage) : stage_(stage), shown_(isatty(STDERR_FILENO) == 1) {}
+  // With a note after the percentage (e.g. the acceptance rate).
+  ~ProgressBar() {
+    if (drawn_) std::fputs("\r\033[K", stderr);
+  }
+  void update(double fraction, const std::string& note = {}) {
+    if (!shown_ || clock_.seconds() < 1) return;
+    constexpr int width = 40;
+    const int filled = int(std::clamp(fraction, 0.0, 1.0) * width);
+    std::fprintf(stderr, "\r%-28s [%.*s%*s] %3d %% %s\033[K", stage_, filled,
+                 "########################################", width - filled, "",
+                 int(fraction * 100), note.c_str());
+    std::fflush(stderr);
+    drawn_ = true;
+  }
+
+ private:
+  const char* stage_;
+  bool shown_, drawn_ = false;
+  Stopwatch clock_;
+};
+
 
 // "0.52 s", "12.3 ms", "45 us".
 std::string describe_seconds(double seconds);

@@ -126,7 +126,8 @@ HardParticleMC::HardParticleMC(HardParticleMC&&) noexcept = default;
 HardParticleMC& HardParticleMC::operator=(HardParticleMC&&) noexcept = default;
 
 HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t seed, double max_aspect,
-                                                const HardParticleMCOptions& options) {
+                                                const HardParticleMCOptions& options,
+                                                std::size_t shapes) {
   if (n == 0) throw std::invalid_argument("HardParticleMC: no particles");
   if (!(max_aspect >= 1) || !std::isfinite(max_aspect))
     throw std::invalid_argument("HardParticleMC: the largest aspect ratio must be >= 1");
@@ -135,7 +136,10 @@ HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t see
   std::vector<std::array<double, 4>> orientation(n);
   double largest = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const double aspect = std::exp(std::log(max_aspect) * (2 * uniform01(engine) - 1));
+    double draw = uniform01(engine);
+    if (shapes == 1) draw = 0.5;
+    if (shapes > 1) draw = std::floor(draw * double(shapes)) / double(shapes - 1);
+    const double aspect = std::exp(std::log(max_aspect) * (2 * draw - 1));
     const double a = 0.5 / std::cbrt(aspect);  // a^2 c = 0.5^3
     axes[i] = {a, a, a * aspect};
     largest = std::max({largest, a, a * aspect});
@@ -209,6 +213,26 @@ SweepReport HardParticleMC::sweep() {
 
   SweepReport report;
   const int threads = s.threads();
+  // Few domains (a small box): one trial at a time, in a single stream. (The
+  // choice depends on the scene only, never on the thread count.)
+  if (domain_count < 64) {
+    std::mt19937_64 engine(mix(sweep_seed, 0x51));
+    for (std::size_t t = 0; t < n; ++t) {
+      const std::uint32_t i = std::uint32_t(uniform01(engine) * double(n));
+      std::array<double, 3> centre = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
+      for (double& x : centre) x += s.translation * (2 * uniform01(engine) - 1);
+      const std::array<double, 4> q =
+          s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine) : s.orientation[i];
+      const MovingScene::Particle trial = ParticleStore::particle_axes(centre, s.semi_axes[i], q);
+      ++report.proposed;
+      if (scene.overlaps(trial, i) != MovingScene::none) continue;
+      scene.move(i, trial);
+      s.orientation[i] = q;
+      ++report.accepted;
+    }
+    finish_sweep(report, start);
+    return report;
+  }
   std::vector<std::mt19937_64> engines;
   std::vector<MovingScene::Particle> trials;
   std::vector<std::uint32_t> trial_particle, query_slot, moving;
@@ -281,6 +305,12 @@ SweepReport HardParticleMC::sweep() {
       report.accepted += moving.size();
     }
   }
+  finish_sweep(report, start);
+  return report;
+}
+
+void HardParticleMC::finish_sweep(SweepReport& report, double start) {
+  State& s = *state_;
   ++s.sweeps;
   if (s.options.adapt_steps && report.proposed > 0) {
     // Towards 30 % acceptance, by at most a factor 1.5 per sweep; the
@@ -293,7 +323,6 @@ SweepReport HardParticleMC::sweep() {
     s.rotation = std::min(pi, std::max(1e-9, s.rotation * factor));
   }
   report.seconds = now() - start;
-  return report;
 }
 
 std::size_t HardParticleMC::overlapping_pairs() const {
@@ -309,7 +338,6 @@ double HardParticleMC::compress() {
   State& s = *state_;
   const double target = s.options.packing;
   const double now_packing = packing();
-  if (now_packing >= target) return now_packing;
   ScreenedPairs pairs;
   ScreenOptions options;
   options.cutoff = 1.1;
@@ -324,7 +352,7 @@ double HardParticleMC::compress() {
                            std::to_string(mu2_min) + ")");
   // Closer than 1e-6 to contact: no room (nor trust in the last digits).
   const double mu_min = std::sqrt(mu2_min);
-  if (mu_min < 1 + 1e-6) return now_packing;
+  if (now_packing >= target || mu_min < 1 + 1e-6) return now_packing;
   const double s_target = std::cbrt(now_packing / target);
   const double scale = std::max(s_target, 1 / std::sqrt(mu_min));
   Box box = s.box;
@@ -349,11 +377,7 @@ void HardParticleMC::compress_to_packing(
                                std::to_string(s.options.packing));
     const SweepReport r = sweep();
     ++done;
-    const std::size_t overlapping = overlapping_pairs();
-    if (overlapping != 0)
-      throw std::logic_error("HardParticleMC: " + std::to_string(overlapping) +
-                             " overlapping pairs after sweep " + std::to_string(s.sweeps));
-    compress();
+    compress();  // (a full screen_pairs, which finds any overlap: std::logic_error)
     if (progress)
       progress(done, packing(), r.proposed ? double(r.accepted) / double(r.proposed) : 0);
   }
