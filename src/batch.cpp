@@ -136,6 +136,7 @@ ContactResult<double> reference_in_long_double(const ScalarPair& p) {
 template <class T>
 kernels::PairSpan<T> span_at(const PairBatchView<T>& pairs, std::size_t begin) {
   kernels::PairSpan<T> in;
+  in.lambda_start = pairs.lambda_start ? pairs.lambda_start + begin : nullptr;
   for (int k = 0; k < 3; ++k) in.r12[k] = pairs.r12[k] + begin;
   for (int k = 0; k < 6; ++k) {
     in.q1[k] = pairs.q1[k] + begin;

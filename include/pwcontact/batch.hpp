@@ -54,6 +54,12 @@ struct PairBatchView {
   const T* r12[3] = {};
   const T* q1[6] = {};
   const T* q2[6] = {};
+  // Optional, for contact_function_batch: a lambda to start each pair's
+  // Newton iteration from (a warm start, e.g. the pair's lambda at the
+  // previous step); NaN or a value outside (0, 1) takes the radial guess.
+  // Used by the double-precision kernels (and float ones on float pairs);
+  // the answer's accuracy does not depend on it, only the evaluations.
+  const T* lambda_start = nullptr;
 };
 
 // Where the results go, `size` elements each. mu2 is required; everything

@@ -7,6 +7,7 @@
 #include "pwcontact/families.hpp"
 #include "pwcontact/monte_carlo.hpp"
 #include "pwcontact/moving_scene.hpp"
+#include "pwcontact/neighbor_list.hpp"
 #include "pwcontact/reference.hpp"
 #include "pwcontact/scene_files.hpp"
 #include "pwcontact/screen.hpp"

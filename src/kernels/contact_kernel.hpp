@@ -202,7 +202,15 @@ class FullBlock : public LaneGroups<Arch, T> {
       const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
       const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
       const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
-      const B guess = w1 / (w1 + w2);
+      B guess = w1 / (w1 + w2);
+      // A warm start (a previous solve's lambda) where one is given and
+      // inside (0, 1); the radial guess elsewhere (NaN: none).
+      if constexpr (std::is_same<T, In>::value) {
+        if (in.lambda_start) {
+          const B given = B::load_unaligned(in.lambda_start + from + std::size_t(u) * W);
+          guess = xsimd::select((given > B(0)) & (given < B(1)), given, guess);
+        }
+      }
       lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
@@ -526,7 +534,11 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
   FullKept<T> kept(scratch, 0);
   const StateByPosition<T> state = state_by_position<T>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
-  const int first = automatic ? first_pass_evaluations<T>(settings) : settings.iterations;
+  // A warm start (lambda_start given) is a Newton step or so from the
+  // answer: one evaluation fewer before the check.
+  const bool warm = std::is_same<T, In>::value && in.lambda_start != nullptr;
+  const int first = automatic ? first_pass_evaluations<T>(settings) - (warm ? 1 : 0)
+                              : settings.iterations;
   const Handoff handoff = automatic && first < settings.max_iterations ? Handoff::adaptive
                                                                        : Handoff::none;
   for_each_block<Arch, FullBlock<Arch, T>::size>(

@@ -17,6 +17,7 @@ struct PairSpan {
   const T* r12[3];
   const T* q1[6];
   const T* q2[6];
+  const T* lambda_start = nullptr;  // optional: where the full kernels start (PairBatchView)
 };
 
 // Which optional outputs a full-answer kernel computes: the kernels are

@@ -273,6 +273,7 @@ PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLane
 template <class In, std::size_t Block>
 struct PaddedTail {
   alignas(64) In buffer[pair_components][Block];
+  alignas(64) In lambda_buffer[Block];
   PairSpan<In> span;
 
   PaddedTail(const PairSpan<In>& in, std::size_t first, std::size_t rest) {
@@ -282,6 +283,11 @@ struct PaddedTail {
       if (k < 3) span.r12[k] = buffer[k];
       else if (k < 9) span.q1[k - 3] = buffer[k];
       else span.q2[k - 9] = buffer[k];
+    }
+    if (in.lambda_start) {
+      for (std::size_t l = 0; l < Block; ++l)
+        lambda_buffer[l] = in.lambda_start[first + (l < rest ? l : 0)];
+      span.lambda_start = lambda_buffer;
     }
   }
 };

@@ -1,0 +1,77 @@
+// A neighbour list with a skin, for anisotropic molecular dynamics
+// (Gay-Berne, RE-squared): the pairs with mu < mu_cut, step after step,
+// from a list of the pairs with mu < mu_cut + skin that is kept while no
+// particle has moved or turned beyond what the skin allows, and rebuilt
+// (screen_pairs) otherwise.
+//
+// The criterion (safe, whatever the shapes): since the list was built,
+// particle i has moved by d_i (its centre, by the minimum image) and its form
+// changed from Q_i to Q_i' (a turn, or any change of shape). The support of
+// its shape moved outwards by at most t_i = |Q_i' - Q_i|_F / (2 rho_i) in any
+// direction (|sqrt(n^T Q' n) - sqrt(n^T Q n)| <= |n^T (Q' - Q) n| / (2 rho_i)
+// for a unit n, rho_i its inscribed radius then, sqrt(lambda_min(Q_i))). So
+// the ellipsoid scaled by mu_cut now lies inside the old one scaled by
+// mu_cut + m_i, m_i = (d_i + mu_cut t_i) / rho_i (a ball of radius x lies in
+// x / rho_i times the ellipsoid), and two particles with mu < mu_cut now had
+// mu < mu_cut + max(m_i, m_j) then. The list is kept while every m_i <= skin.
+// (For a turn by theta of semi-axes a >= c, |Q' - Q|_F is at most about
+// sqrt(2) (a^2 - c^2) theta.)
+//
+// Warm start: the pairs of a kept list are solved again from the lambda
+// each had at the last step (PairBatchView::lambda_start), which the
+// double-precision kernels start their Newton iteration from.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "pwcontact/screen.hpp"
+
+namespace pwcontact {
+
+struct SkinOptions {
+  double cutoff = 1.5;  // mu_cut: the pairs with mu < cutoff are reported
+  double skin = 0.2;    // the list holds the pairs with mu < cutoff + skin (> 0)
+  bool warm_start = true;
+  int threads = 0;      // 0: omp_get_max_threads()
+  BatchOptions batch;   // of the solves (threads ignored)
+};
+
+struct SkinReport {
+  bool rebuilt = false;
+  double largest_move = 0;      // max m_i (in units of mu) since the last rebuild
+  std::size_t listed = 0;       // pairs in the list
+  std::size_t solved = 0;       // pairs solved this step
+  std::size_t found = 0;        // pairs with mu < cutoff
+  double mean_evaluations = 0;  // per solved pair
+  double seconds_solve = 0, seconds_total = 0;
+};
+
+class SkinNeighborList {
+ public:
+  // Throws std::invalid_argument for a cutoff below 1 or not finite, or a
+  // skin that is not positive and finite.
+  explicit SkinNeighborList(const SkinOptions& options = {});
+
+  // The pairs (i < j, sorted) with mu < cutoff of the particles as they are
+  // now, with mu^2: from the list when every particle's m_i is within the
+  // skin (and the count and box are unchanged), after a rebuild otherwise.
+  // Throws as screen_pairs does.
+  SkinReport update(const ParticleStore& particles, const Box& box, ScreenedPairs& out);
+
+  std::size_t rebuilds() const noexcept { return rebuilds_; }
+  const SkinOptions& options() const noexcept { return options_; }
+
+ private:
+  SkinOptions options_;
+  std::size_t rebuilds_ = 0;
+  Box box_;
+  // At the last rebuild: centres, forms and inscribed radii.
+  std::vector<double> centre_[3], q_[6], inscribed_;
+  // The listed pairs (i < j) and the lambda each had at its last solve.
+  std::vector<std::uint32_t> first_, second_;
+  std::vector<double> lambda_;
+};
+
+}  // namespace pwcontact

@@ -1,0 +1,155 @@
+// The neighbour list with a skin (neighbor_list.hpp).
+#include "pwcontact/neighbor_list.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "screen/cell_lists.hpp"
+
+namespace pwcontact {
+namespace {
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+bool same_box(const Box& a, const Box& b) {
+  return a.periodic == b.periodic && a.two_dimensional == b.two_dimensional && a.length == b.length &&
+         a.tilt == b.tilt;
+}
+
+}  // namespace
+
+SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(options) {
+  if (!(options.cutoff >= 1) || !std::isfinite(options.cutoff))
+    throw std::invalid_argument("SkinNeighborList: the cutoff must be >= 1 and finite, got " +
+                                std::to_string(options.cutoff));
+  if (!(options.skin > 0) || !std::isfinite(options.cutoff + options.skin))
+    throw std::invalid_argument("SkinNeighborList: the skin must be positive and finite, got " +
+                                std::to_string(options.skin));
+}
+
+SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& box, ScreenedPairs& out) {
+  const double start = now();
+  SkinReport report;
+  const std::size_t n = particles.size();
+  const int threads = options_.threads > 0 ? options_.threads : omp_get_max_threads();
+  const double cutoff = options_.cutoff;
+  const screen::BoxGeometry geometry(box);
+  // The largest m_i since the last rebuild (infinite when there is none to
+  // compare with).
+  double largest = std::numeric_limits<double>::infinity();
+  if (rebuilds_ > 0 && inscribed_.size() == n && same_box(box, box_)) {
+    largest = 0;
+#pragma omp parallel for num_threads(threads) reduction(max : largest) schedule(static)
+    for (std::size_t i = 0; i < n; ++i) {
+      double d[3];
+      for (int k = 0; k < 3; ++k) d[k] = particles.centre(k)[i] - centre_[k][i];
+      geometry.minimum_image(d);
+      const double dq[6] = {particles.q(0)[i] - q_[0][i], particles.q(1)[i] - q_[1][i],
+                            particles.q(2)[i] - q_[2][i], particles.q(3)[i] - q_[3][i],
+                            particles.q(4)[i] - q_[4][i], particles.q(5)[i] - q_[5][i]};
+      const double frobenius = std::sqrt(dq[0] * dq[0] + dq[3] * dq[3] + dq[5] * dq[5] +
+                                         2 * (dq[1] * dq[1] + dq[2] * dq[2] + dq[4] * dq[4]));
+      const double moved = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      const double m = (moved + cutoff * frobenius / (2 * inscribed_[i])) / inscribed_[i];
+      largest = std::max(largest, std::isnan(m) ? std::numeric_limits<double>::infinity() : m);
+    }
+  }
+  report.largest_move = largest;
+  // (A margin of 1e-9 for the rounding of m_i and of the listed pairs' mu.)
+  if (!(largest <= options_.skin * (1 - 1e-9))) {
+    ScreenOptions screen_options;
+    screen_options.cutoff = cutoff + options_.skin;
+    screen_options.with_mu2 = true;
+    screen_options.threads = threads;
+    screen_options.batch = options_.batch;
+    ScreenedPairs listed;
+    const ScreenReport screened = screen_pairs(particles, box, screen_options, listed);
+    box_ = box;
+    for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
+    for (int k = 0; k < 6; ++k) q_[k] = particles.q(k);
+    inscribed_ = particles.inscribed_radius();
+    first_ = listed.i;
+    second_ = listed.j;
+    lambda_.assign(listed.size(), std::numeric_limits<double>::quiet_NaN());
+    ++rebuilds_;
+    out = ScreenedPairs();
+    for (std::size_t k = 0; k < listed.size(); ++k)
+      if (listed.mu2[k] < cutoff * cutoff) {
+        out.i.push_back(listed.i[k]);
+        out.j.push_back(listed.j[k]);
+        out.mu2.push_back(listed.mu2[k]);
+      }
+    report.rebuilt = true;
+    report.listed = listed.size();
+    report.found = out.size();
+    report.solved = screened.solved;
+    report.mean_evaluations = screened.batch.mean_evaluations;
+    report.seconds_solve = screened.seconds_solve;
+    report.seconds_total = now() - start;
+    return report;
+  }
+  // The listed pairs whose bounding spheres (scaled by the cutoff) meet now,
+  // solved from their last lambda.
+  const std::size_t listed = first_.size();
+  std::vector<std::uint32_t> which;
+  PairBatch<double> batch;
+  std::vector<double> guess;
+  const std::vector<double>& bounding = particles.bounding_radius();
+  for (std::size_t k = 0; k < listed; ++k) {
+    const std::uint32_t i = first_[k], j = second_[k];
+    double r[3];
+    for (int c = 0; c < 3; ++c) r[c] = particles.centre(c)[j] - particles.centre(c)[i];
+    geometry.minimum_image(r);
+    const double reach = cutoff * (bounding[i] + bounding[j]);
+    if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach) continue;
+    double qi[6], qj[6];
+    for (int c = 0; c < 6; ++c) {
+      qi[c] = particles.q(c)[i];
+      qj[c] = particles.q(c)[j];
+    }
+    batch.push_back(r, qi, qj);
+    which.push_back(std::uint32_t(k));
+    guess.push_back(lambda_[k]);
+  }
+  const std::size_t m = which.size();
+  std::vector<double> mu2(m), lambda(m);
+  std::vector<Status> status(m);
+  PairBatchView<double> view = batch.view();
+  if (options_.warm_start) view.lambda_start = guess.data();
+  BatchOptions batch_options = options_.batch;
+  batch_options.threads = threads;
+  const double solve_start = now();
+  const BatchReport solved =
+      contact_function_batch(view, {mu2.data(), lambda.data(), status.data()}, batch_options);
+  report.seconds_solve = now() - solve_start;
+  out = ScreenedPairs();
+  for (std::size_t s = 0; s < m; ++s) {
+    const std::size_t k = which[s];
+    if (!is_valid(status[s]) && status[s] != Status::out_of_range)
+      throw std::runtime_error("SkinNeighborList: the pair (" + std::to_string(first_[k]) + ", " +
+                               std::to_string(second_[k]) + ") has no answer (" +
+                               status_name(status[s]) + ")");
+    lambda_[k] = lambda[s];
+    if (mu2[s] < cutoff * cutoff) {
+      out.i.push_back(first_[k]);
+      out.j.push_back(second_[k]);
+      out.mu2.push_back(mu2[s]);
+    }
+  }
+  report.listed = listed;
+  report.solved = m;
+  report.found = out.size();
+  report.mean_evaluations = solved.mean_evaluations;
+  report.seconds_total = now() - start;
+  return report;
+}
+
+}  // namespace pwcontact

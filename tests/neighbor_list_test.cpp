@@ -1,0 +1,220 @@
+// The neighbour list with a skin against a fresh screen_pairs at every step
+// of slowly moving and turning scenes; warm starts against cold ones and
+// against the reference path.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include "pwcontact/pwcontact.hpp"
+
+namespace {
+
+using pwcontact::Box;
+using pwcontact::ParticleStore;
+
+// q1 q2 (Hamilton product, (w, x, y, z)).
+std::array<double, 4> multiply(const std::array<double, 4>& a, const std::array<double, 4>& b) {
+  return {a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+          a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+          a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+          a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
+}
+
+struct Moving {
+  Box box;
+  std::vector<std::array<double, 3>> centre, axes;
+  std::vector<std::array<double, 4>> orientation;
+  ParticleStore store() const {
+    ParticleStore s;
+    for (std::size_t i = 0; i < centre.size(); ++i) s.add_axes(centre[i], axes[i], orientation[i]);
+    return s;
+  }
+  // Every particle moved by up to `step` along each axis and turned by up to
+  // `turn` radians.
+  void move(std::mt19937_64& engine, double step, double turn) {
+    std::uniform_real_distribution<double> unit(-1, 1);
+    for (std::size_t i = 0; i < centre.size(); ++i) {
+      for (double& x : centre[i]) x += step * unit(engine);
+      const double angle = turn * unit(engine) / 2;
+      double axis[3] = {unit(engine), unit(engine), unit(engine)};
+      const double norm = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+      orientation[i] = multiply({std::cos(angle), std::sin(angle) * axis[0] / norm,
+                                 std::sin(angle) * axis[1] / norm, std::sin(angle) * axis[2] / norm},
+                                orientation[i]);
+    }
+  }
+};
+
+Moving random_scene(std::size_t n, double length, std::uint64_t seed, bool triclinic) {
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  Moving m;
+  m.box = triclinic ? Box::triclinic(length, length, length, 0.3, -0.2, 0.1)
+                    : Box::periodic_box(length, length, length);
+  for (std::size_t i = 0; i < n; ++i) {
+    m.centre.push_back({length * unit(engine), length * unit(engine), length * unit(engine)});
+    const double a = 0.2 + 0.3 * unit(engine);
+    m.axes.push_back({a, a * (0.5 + unit(engine)), a * (0.4 + 2 * unit(engine))});
+    m.orientation.push_back({normal(engine), normal(engine), normal(engine), normal(engine)});
+  }
+  return m;
+}
+
+// The pairs of `got` and of a fresh screen_pairs, compared: the same pairs
+// (but those within 1e-9 of the cutoff), mu^2 within 1e-10 (both are the
+// batch path's mu^2, from different starts).
+void expect_same(const pwcontact::ScreenedPairs& got, const ParticleStore& s, const Box& box,
+                 double cutoff, const std::string& where) {
+  pwcontact::ScreenedPairs fresh;
+  pwcontact::ScreenOptions options;
+  options.cutoff = cutoff;
+  options.with_mu2 = true;
+  pwcontact::screen_pairs(s, box, options, fresh);
+  std::map<std::pair<std::uint32_t, std::uint32_t>, double> expected, found;
+  for (std::size_t k = 0; k < fresh.size(); ++k) expected[{fresh.i[k], fresh.j[k]}] = fresh.mu2[k];
+  for (std::size_t k = 0; k < got.size(); ++k) found[{got.i[k], got.j[k]}] = got.mu2[k];
+  const double band = 1e-9 * cutoff * cutoff;
+  for (const auto& [pair, mu2] : expected) {
+    auto f = found.find(pair);
+    if (f == found.end()) {
+      EXPECT_GE(mu2, cutoff * cutoff - band) << where << ": missed (" << pair.first << ", " << pair.second << ")";
+      continue;
+    }
+    EXPECT_NEAR(f->second, mu2, 1e-10 * mu2) << where;
+  }
+  for (const auto& [pair, mu2] : found)
+    if (!expected.count(pair)) {
+      EXPECT_GE(mu2, cutoff * cutoff - band) << where << ": extra (" << pair.first << ", " << pair.second << ")";
+    }
+}
+
+TEST(SkinNeighborList, EveryStepIsTheFreshScreenAndTheListIsKeptWhileTheSkinAllows) {
+  for (bool triclinic : {false, true}) {
+    std::mt19937_64 engine(triclinic ? 21 : 20);
+    Moving m = random_scene(1500, 12, triclinic ? 3 : 2, triclinic);
+    pwcontact::SkinOptions options;
+    options.cutoff = 1.4;
+    options.skin = 0.15;
+    pwcontact::SkinNeighborList list(options);
+    std::size_t kept = 0;
+    for (int step = 0; step < 60; ++step) {
+      const ParticleStore s = m.store();
+      pwcontact::ScreenedPairs pairs;
+      const pwcontact::SkinReport r = list.update(s, m.box, pairs);
+      kept += !r.rebuilt;
+      if (!r.rebuilt) {
+        EXPECT_LE(r.largest_move, options.skin);
+      }
+      expect_same(pairs, s, m.box, options.cutoff,
+                  std::string(triclinic ? "triclinic" : "cubic") + ", step " + std::to_string(step));
+      // Slow, with now and then a jump beyond the skin.
+      m.move(engine, step % 17 == 16 ? 0.3 : 0.004, 0.004);
+    }
+    EXPECT_GT(kept, 30u) << "the list is kept while the moves are small";
+    EXPECT_GE(list.rebuilds(), 4u) << "and rebuilt after the jumps (and as the moves add up)";
+  }
+}
+
+TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {
+  Moving m = random_scene(400, 8, 5, false);
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.2;
+  options.skin = 0.1;
+  pwcontact::SkinNeighborList list(options);
+  pwcontact::ScreenedPairs pairs;
+  list.update(m.store(), m.box, pairs);
+  // One needle turned by 0.3 rad about its centre, nothing else moved.
+  m.axes[7] = {0.1, 0.1, 0.6};
+  pwcontact::ScreenedPairs before;
+  list.update(m.store(), m.box, before);  // (a new shape: rebuilt)
+  const std::size_t rebuilds = list.rebuilds();
+  m.orientation[7] = multiply({std::cos(0.15), std::sin(0.15), 0, 0}, m.orientation[7]);
+  const pwcontact::SkinReport r = list.update(m.store(), m.box, pairs);
+  EXPECT_TRUE(r.rebuilt);
+  EXPECT_EQ(list.rebuilds(), rebuilds + 1);
+  expect_same(pairs, m.store(), m.box, options.cutoff, "after the turn");
+}
+
+TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
+  std::mt19937_64 engine(30);
+  Moving m = random_scene(3000, 15, 6, false);
+  pwcontact::SkinOptions warm_options, cold_options;
+  cold_options.warm_start = false;
+  pwcontact::SkinNeighborList warm(warm_options), cold(cold_options);
+  double warm_evaluations = 0, cold_evaluations = 0;
+  for (int step = 0; step < 12; ++step) {
+    const ParticleStore s = m.store();
+    pwcontact::ScreenedPairs a, b;
+    const auto rw = warm.update(s, m.box, a);
+    const auto rc = cold.update(s, m.box, b);
+    ASSERT_EQ(rw.rebuilt, rc.rebuilt);
+    ASSERT_EQ(a.i, b.i);
+    ASSERT_EQ(a.j, b.j);
+    for (std::size_t k = 0; k < a.size(); ++k) EXPECT_NEAR(a.mu2[k], b.mu2[k], 1e-10 * b.mu2[k]);
+    if (step > 1 && !rw.rebuilt) {
+      warm_evaluations += rw.mean_evaluations;
+      cold_evaluations += rc.mean_evaluations;
+    }
+    m.move(engine, 0.002, 0.002);
+  }
+  std::printf("[ measured ] mean evaluations per pair, warm %.3f, cold %.3f\n", warm_evaluations / 10,
+              cold_evaluations / 10);
+  EXPECT_LT(warm_evaluations, 0.8 * cold_evaluations);
+}
+
+TEST(WarmStart, AnyStartingLambdaGivesTheReferenceAnswer) {
+  // Starts at the exact lambda, near it, at the ends, outside (0, 1) and NaN:
+  // the answer is the reference path's whichever.
+  std::mt19937_64 engine(31);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const Moving m = random_scene(200, 5, 7, false);
+  const ParticleStore s = m.store();
+  pwcontact::PairBatch<double> batch;
+  std::vector<double> exact_mu2, exact_lambda;
+  for (std::uint32_t i = 0; i + 1 < s.size(); i += 2) {
+    double r[3], q1[6], q2[6];
+    for (int k = 0; k < 3; ++k) r[k] = 0.3 + unit(engine);
+    for (int k = 0; k < 6; ++k) {
+      q1[k] = s.q(k)[i];
+      q2[k] = s.q(k)[i + 1];
+    }
+    batch.push_back(r, q1, q2);
+    const auto ref = pwcontact::contact_function<double>(r, q1, q2);
+    exact_mu2.push_back(ref.mu2);
+    exact_lambda.push_back(ref.lambda);
+  }
+  const std::size_t n = batch.size();
+  for (int kind = 0; kind < 6; ++kind) {
+    std::vector<double> start(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double l = exact_lambda[k];
+      const double choices[6] = {l, l * (1 + 1e-3), 1e-300, 1 - 1e-16, 2, NAN};
+      start[k] = choices[kind];
+    }
+    for (pwcontact::Isa isa : pwcontact::supported_isas()) {
+      pwcontact::PairBatchView<double> view = batch.view();
+      view.lambda_start = start.data();
+      std::vector<double> mu2(n);
+      std::vector<pwcontact::Status> status(n);
+      pwcontact::BatchOptions options;
+      options.isa = isa;
+      options.precision = pwcontact::Precision::double_precision;
+      const auto report = pwcontact::contact_function_batch(view, {mu2.data(), nullptr, status.data()}, options);
+      for (std::size_t k = 0; k < n; ++k) {
+        ASSERT_TRUE(pwcontact::is_valid(status[k]));
+        EXPECT_NEAR(mu2[k], exact_mu2[k], 1e-11 * exact_mu2[k]) << "start kind " << kind << ", pair " << k;
+      }
+      if (kind == 0)
+        std::printf("[ measured ] %s: %.3f evaluations per pair from the exact lambda\n",
+                    pwcontact::isa_name(isa), report.mean_evaluations);
+    }
+  }
+}
+
+}  // namespace
