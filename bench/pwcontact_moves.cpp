@@ -63,6 +63,9 @@ using Particle = ParticleStore::Particle;
 
 constexpr std::size_t particles = 1000000;
 constexpr std::size_t trials_per_iteration = 200000;
+// FCL answers the first trials of the same interior sequence (its rate is
+// per trial; ours is measured on the whole sequence and on this prefix).
+constexpr std::size_t fcl_trials = 20000;
 
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -375,7 +378,7 @@ void fcl_benchmark(benchmark::State& state, double packing) {
   for (auto _ : state) {
     state.PauseTiming();
     const MovingScene scene(s, w.scene.box);
-    const std::vector<Trial> trials = make_trials(w, scene, true, true, trials_per_iteration);
+    const std::vector<Trial> trials = make_trials(w, scene, true, true, fcl_trials);
     std::vector<std::unique_ptr<fcl::CollisionObjectd>> objects;
     std::vector<fcl::CollisionObjectd*> pointers;
     auto transform = [](const std::array<double, 3>& c, const std::array<double, 4>& q) {
@@ -436,7 +439,7 @@ void fcl_benchmark(benchmark::State& state, double packing) {
     queries += trials.size();
     rates()[name].push_back(double(trials.size()) / seconds);
     // Agreement with our answers on the same trials (ours are exact).
-    if (our_answers.size() == answers.size()) {
+    if (our_answers.size() >= answers.size()) {
       std::size_t differ = 0;
       for (std::size_t k = 0; k < answers.size(); ++k) differ += answers[k] != our_answers[k];
       facts()["fcl_disagreements/packing:" + packing_name(packing)] = double(differ);
@@ -482,7 +485,7 @@ void print_summary() {
       std::printf("  %s: against FCL on the same interior trials: %.1fx (target >= 20x): %s; "
                   "FCL disagrees with the exact answer on %.0f of %zu trials\n",
                   packing.c_str(), interior / fcl, interior / fcl >= 20 ? "met" : "NOT met",
-                  facts()["fcl_disagreements/" + packing], trials_per_iteration);
+                  facts()["fcl_disagreements/" + packing], fcl_trials);
     if (!std::isnan(two))
       std::printf("  %s: batched rounds (every fourth cell), 2 threads over 1: %.2fx\n",
                   packing.c_str(), two / one);

@@ -794,7 +794,9 @@ INSTANTIATE_TEST_SUITE_P(
         "contact --mode overlap --accuracy standard a.txt", "contact --cutoff 2 a.txt",
         "contact --mode full --cutoff 1 a.txt", "contact --scalar --precision mixed a.txt",
         "contact --scalar --accuracy high a.txt", "contact --scalar --formulation newton a.txt",
-        "contact --scalar --isa auto a.txt"));
+        "contact --scalar --isa auto a.txt",
+        // mc
+        "mc --n 0", "mc --packing 0.7", "mc --packing 0", "mc --sweeps 0", "mc extra"));
 
 TEST_F(cli, OptionsThatDoNotApplyAreRefusedWithTheReason) {
   write_file("a.txt", "");
@@ -1304,6 +1306,35 @@ TEST_F(cli, ContactStreamsItsInputInBoundedMemory) {
   std::size_t lines = 0;
   for (std::string line; std::getline(out, line);) ++lines;
   EXPECT_EQ(lines, 2000000u);
+}
+
+TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
+  for (const char* name : {"mc.gsd", "mc.txt"}) {
+    const Outcome mc = run(std::string("mc --n 64 --packing 0.3 --seed 2 -o ") + name);
+    ASSERT_EQ(mc.exit_status, 0) << mc.err;
+    EXPECT_TRUE(contains(mc.err, "packing fraction 0.3000")) << mc.err;
+    EXPECT_TRUE(contains(mc.err, "no overlap")) << mc.err;
+    // Read back by screen (the text file with the box its comment gives):
+    // no pair overlaps, and some are near contact.
+    std::string box;
+    if (std::string(name) == "mc.txt") {
+      const std::string text = read_file(name);
+      const std::size_t at = text.find("--box ");
+      ASSERT_NE(at, std::string::npos) << text.substr(0, 300);
+      box = "--format axes " + text.substr(at, text.find(" mc.txt", at) - at) + " ";
+    }
+    const Outcome screen = run("screen " + box + name);
+    ASSERT_EQ(screen.exit_status, 0) << screen.err;
+    EXPECT_EQ(screen.out, "") << name;
+    EXPECT_TRUE(contains(screen.err, "64 ellipsoids")) << screen.err;
+    const Outcome near = run("screen --cutoff 1.05 " + box + name);
+    EXPECT_NE(near.out, "") << name << ": compressed to contact, some pairs are near";
+  }
+  // Falling short: exit status 3, nothing written.
+  const Outcome short_of = run("mc --n 64 --packing 0.6 --sweeps 3 -o short.gsd");
+  EXPECT_EQ(short_of.exit_status, 3) << short_of.err;
+  EXPECT_TRUE(contains(short_of.err, "short of 0.6")) << short_of.err;
+  EXPECT_FALSE(fs::exists(path("short.gsd")));
 }
 
 }  // namespace

@@ -363,3 +363,50 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(HardParticleMC, CompressesWithoutEverOverlappingAndTheLastStateHasNone) {
+  pwcontact::HardParticleMCOptions options;
+  options.packing = 0.35;
+  options.seed = 3;
+  auto mc = pwcontact::HardParticleMC::dilute_spheroids(125, 3, 3, options);
+  std::size_t sweeps = 0;
+  mc.compress_to_packing(20000, [&](std::size_t done, double, double) { sweeps = done; });
+  EXPECT_NEAR(mc.packing(), 0.35, 1e-9);
+  EXPECT_GT(sweeps, 10u);
+  // The final state against the brute force over every image.
+  const ParticleStore& s = mc.particles();
+  std::size_t overlapping = 0;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    for (std::size_t j = i + 1; j < s.size(); ++j)
+      overlapping += brute_mu2(mc.box(), s.particle_at(i), s, j) < 1;
+  EXPECT_EQ(overlapping, 0u);
+  EXPECT_EQ(mc.overlapping_pairs(), 0u);
+}
+
+TEST(HardParticleMC, CheckerboardSweepsGiveTheSameStateForEveryThreadCount) {
+  // 2000 spheroids at packing ~0.06: 9 x 9 x 9 domains, checkerboard sweeps.
+  std::vector<std::vector<double>> centres;
+  for (int threads : {1, 2, 3}) {
+    pwcontact::HardParticleMCOptions options;
+    options.threads = threads;
+    options.translation = 0.5;
+    auto mc = pwcontact::HardParticleMC::dilute_spheroids(2000, 4, 3, options);
+    std::size_t accepted = 0, proposed = 0;
+    for (int sweep = 0; sweep < 4; ++sweep) {
+      const auto r = mc.sweep();
+      accepted += r.accepted;
+      proposed += r.proposed;
+    }
+    EXPECT_GT(accepted, proposed / 10);
+    EXPECT_EQ(mc.overlapping_pairs(), 0u);
+    std::vector<double> all;
+    for (int k = 0; k < 3; ++k) all.insert(all.end(), mc.particles().centre(k).begin(), mc.particles().centre(k).end());
+    centres.push_back(all);
+  }
+  EXPECT_EQ(centres[0], centres[1]);
+  EXPECT_EQ(centres[0], centres[2]);
+}
+
+}  // namespace
