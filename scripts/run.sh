@@ -11,6 +11,8 @@
 #   bash scripts/run.sh tsan          the thread-safety tests under ThreadSanitizer (clang)
 #   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
 #   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
+#   bash scripts/run.sh moves-bench [args]   trial moves, Monte Carlo sweeps, neighbour lists
+#                                     and FCL (pwcontact_moves; installs libfcl-dev)
 #   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
 #                                     Markdown and a gnuplot plot), labelled with the
 #                                     commit measured; to refresh the README's figures:
@@ -22,14 +24,15 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 job="${1:-}"
 [ $# -gt 0 ] && shift
 case "$job" in
-  demo|test|sanitize|fuzz|tsan|bench|screen-bench|trade) ;;
-  *) echo "usage: bash scripts/run.sh demo|test|sanitize|fuzz|tsan|bench|screen-bench|trade [args...]" >&2; exit 2 ;;
+  demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|trade) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|trade [args...]" >&2; exit 2 ;;
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
 packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-dev
           libbenchmark-dev libboost-dev)
 [ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
+[ "$job" = moves-bench ] && packages+=(libfcl-dev)  # the baseline of the trial moves
 # The scene-file tests also read back what they write with the gsd package.
 case "$job" in test|sanitize) packages+=(python3-gsd) ;; esac
 # libFuzzer and ThreadSanitizer come with clang; LLVM's OpenMP runtime is
@@ -110,6 +113,10 @@ case "$job" in
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_screen
     exec build/release/bench/pwcontact_screen "$@" ;;
+  moves-bench)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target pwcontact_moves
+    exec build/release/bench/pwcontact_moves "$@" ;;
   trade)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_trade

@@ -76,5 +76,47 @@ TEST(ThreadSafety, CallsFromSeveralThreadsGetTheAnswersTheyGetAlone) {
   }
 }
 
+TEST(ThreadSafety, AMovingSceneAnswersCallersInSeveralThreadsAndMovesInParallel) {
+  // Queries are const: single and batched ones from several threads at once
+  // (each with its own per-thread solver), then a sweep of HardParticleMC
+  // (batched queries and parallel moves) with 2 threads against 1.
+  pwcontact::HardParticleMCOptions options;
+  options.threads = 1;
+  auto one = pwcontact::HardParticleMC::dilute_spheroids(1500, 5, 3, options);
+  options.threads = 2;
+  auto two = pwcontact::HardParticleMC::dilute_spheroids(1500, 5, 3, options);
+  for (int sweep = 0; sweep < 2; ++sweep) {
+    one.sweep();
+    two.sweep();
+  }
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(one.particles().centre(k), two.particles().centre(k));
+  const pwcontact::MovingScene scene(one.particles(), one.box());
+  std::vector<pwcontact::MovingScene::Particle> trials;
+  std::vector<std::int64_t> exclude;
+  Engine engine(19);
+  for (std::size_t i = 0; i < scene.size(); i += 3) {
+    auto c = scene.particles().particle_at(i).centre();
+    for (double& x : c) x += 1.5 * (uniform01(engine) - 0.5);
+    trials.push_back(scene.particles().particle_at(i).moved_to(c));
+    exclude.push_back(std::int64_t(i));
+  }
+  std::vector<std::int64_t> alone(trials.size());
+  for (std::size_t k = 0; k < trials.size(); ++k) alone[k] = scene.overlaps(trials[k], exclude[k]);
+  constexpr int callers = 4;
+  std::vector<std::vector<std::int64_t>> single(callers), batched(callers);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < callers; ++t)
+    threads.emplace_back([&, t] {
+      for (std::size_t k = 0; k < trials.size(); ++k) single[t].push_back(scene.overlaps(trials[k], exclude[k]));
+      batched[t].resize(trials.size());
+      scene.overlaps(trials.data(), exclude.data(), trials.size(), batched[t].data(), 1 + t % 2);
+    });
+  for (std::thread& thread : threads) thread.join();
+  for (int t = 0; t < callers; ++t) {
+    EXPECT_EQ(single[t], alone) << "caller " << t;
+    EXPECT_EQ(batched[t], alone) << "caller " << t;
+  }
+}
+
 }  // namespace
 }  // namespace pwtest
