@@ -9,15 +9,18 @@
 // grouping shifted by a random cell along each axis every sweep (so that no
 // face between domains stays in place); the domains coloured so that two of
 // one colour are a domain apart (2 colours along an axis, a third for the
-// last domain of an odd count). Colour by colour, in rounds: every domain of
-// the colour proposes one move of one of its particles (a translation
-// uniform in [-d, d]^3 and a turn by an angle uniform in [0, a] about a
-// random axis), a move that would leave the domain is rejected, the others
-// are answered by one batched query (the SIMD lanes across domains, OpenMP
-// threads across them) and the accepted ones applied by move_many. Domains of
-// one colour are at least a cell (the largest reach) apart, so their moves
-// are independent: the result is the same for every thread count. Each
-// domain proposes as many moves as it holds particles: one per particle per
+// last domain of an odd count). Colour by colour, the domains of the colour
+// run in parallel (OpenMP threads), each its own trials one after another:
+// a random particle of the domain, a move of it (a translation uniform in
+// [-d, d]^3 and a turn by an angle uniform in [0, a] about a random axis),
+// rejected if it leaves the domain, else a trial query and, when the moved
+// particle overlaps nothing, the move (MovingScene::move_in_own_cells; one
+// that needs a rebuild is applied after the colour, in one thread, and ends
+// its domain's trials for the colour). Domains of one colour are at least a
+// cell (the largest reach) apart, so their moves are independent and no
+// query reaches a cell another domain writes: the result is the same for
+// every thread count. Each domain proposes as many moves as it holds
+// particles: one per particle per
 // sweep on average. Every (seed, sweep, colour, domain) has its own random
 // stream. A scene of fewer than 64 domains is swept one trial at a time
 // instead (n trials of random particles, one random stream per sweep).

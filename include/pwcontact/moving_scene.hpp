@@ -126,6 +126,16 @@ class MovingScene {
   void move_many(const std::uint32_t* index, const Particle* particles, std::size_t count,
                  int threads = 0);
 
+  // A move for callers that own cells, e.g. the domains of a checkerboard
+  // sweep run by several threads at once: thread-safe provided that no other
+  // call reads or writes particle i, its old cell or its new cell meanwhile
+  // (nor queries reach them). Applies the move and returns true when it
+  // needs no more than its two cells; returns false, changing nothing, when
+  // it would need more (a rebuild: a full cell, a particle beyond the cells'
+  // reach, an open box's region left) or the input is not valid for move():
+  // then call move() from one thread. (Not counted in counters().)
+  bool move_in_own_cells(std::size_t i, const Particle& p);
+
   // The grid: cells per axis and the cell of particle i (for domain
   // decompositions such as a checkerboard sweep's); the cell of a centre.
   std::array<int, 3> cells() const noexcept;

@@ -7,10 +7,12 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
 
+#include "parallel_errors.hpp"
 #include "pwcontact/ellipsoid.hpp"
 
 namespace pwcontact {
@@ -233,77 +235,60 @@ SweepReport HardParticleMC::sweep() {
     finish_sweep(report, start);
     return report;
   }
-  std::vector<std::mt19937_64> engines;
-  std::vector<MovingScene::Particle> trials;
-  std::vector<std::uint32_t> trial_particle, query_slot, moving;
-  std::vector<std::uint8_t> wants_query;
-  std::vector<std::array<double, 4>> trial_orientation;
-  std::vector<std::int64_t> exclude, hit;
-  std::vector<MovingScene::Particle> query_trials, moved;
+  // Colour by colour, the domains in parallel, each running its own trials
+  // one after another (its cells and their neighbours stay in cache): a
+  // query, and the move applied at once when it overlaps nothing. Domains of
+  // one colour are a cell apart, so no query of one reaches a cell another
+  // writes. A move that needs more than its two cells (a full cell: a
+  // rebuild) is applied after the colour, in one thread, and ends its
+  // domain's trials for the colour.
+  struct Deferred {
+    std::uint32_t particle;
+    std::array<double, 4> orientation;
+    std::optional<MovingScene::Particle> trial;
+  };
   for (int colour = 0; colour < 27; ++colour) {
     const std::vector<std::uint32_t>& active = by_colour[colour];
     if (active.empty()) continue;
     const std::size_t m = active.size();
-    engines.clear();
-    std::size_t rounds = 0;
-    for (std::uint32_t d : active) {
-      engines.emplace_back(mix(sweep_seed, (std::uint64_t(colour) << 40) ^ d));
-      rounds = std::max<std::size_t>(rounds, start_of[d + 1] - start_of[d]);
-    }
-    // Trials are made from the store while nothing moves (the store's
-    // particles are read only between move_many calls).
-    trials.assign(m, store.particle_at(0));
-    trial_particle.assign(m, 0);
-    wants_query.assign(m, 0);
-    trial_orientation.assign(m, {1, 0, 0, 0});
-    for (std::size_t round = 0; round < rounds; ++round) {
-      std::size_t left = 0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : left)
-      for (std::size_t k = 0; k < m; ++k) {
-        const std::uint32_t d = active[k];
-        wants_query[k] = 0;
-        if (round >= start_of[d + 1] - start_of[d]) continue;
-        std::mt19937_64& engine = engines[k];
-        const std::size_t count = start_of[d + 1] - start_of[d];
+    std::vector<Deferred> deferred(m);
+    std::size_t proposed = 0, accepted = 0, left = 0;
+    detail::ParallelErrors errors;
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4) reduction(+ : proposed, accepted, left)
+    for (std::size_t k = 0; k < m; ++k) errors.run([&] {
+      const std::uint32_t d = active[k];
+      std::mt19937_64 engine(mix(sweep_seed, (std::uint64_t(colour) << 40) ^ d));
+      const std::size_t count = start_of[d + 1] - start_of[d];
+      for (std::size_t t = 0; t < count; ++t) {
+        ++proposed;
         const std::uint32_t i = member[start_of[d] + std::size_t(uniform01(engine) * double(count))];
         std::array<double, 3> centre = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
         for (double& x : centre) x += s.translation * (2 * uniform01(engine) - 1);
-        const std::array<double, 4> q = s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine)
-                                                       : s.orientation[i];
+        const std::array<double, 4> q =
+            s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine) : s.orientation[i];
         if (domain_of(scene.cell_of(centre)) != d) {
           ++left;
           continue;
         }
-        trials[k] = ParticleStore::particle_axes(centre, s.semi_axes[i], q);
-        trial_particle[k] = i;
-        trial_orientation[k] = q;
-        wants_query[k] = 1;
+        const MovingScene::Particle trial = ParticleStore::particle_axes(centre, s.semi_axes[i], q);
+        if (scene.overlaps(trial, i) != MovingScene::none) continue;
+        ++accepted;
+        if (!scene.move_in_own_cells(i, trial)) {
+          deferred[k] = {i, q, trial};
+          break;
+        }
+        s.orientation[i] = q;
       }
-      report.left_domain += left;
-      query_trials.clear();
-      exclude.clear();
-      query_slot.clear();
-      for (std::size_t k = 0; k < m; ++k) {
-        if (round < start_of[active[k] + 1] - start_of[active[k]]) ++report.proposed;
-        if (!wants_query[k]) continue;
-        query_trials.push_back(trials[k]);
-        exclude.push_back(trial_particle[k]);
-        query_slot.push_back(std::uint32_t(k));
+    });
+    errors.rethrow_if_failed();
+    for (const Deferred& move : deferred)
+      if (move.trial) {
+        scene.move(move.particle, *move.trial);
+        s.orientation[move.particle] = move.orientation;
       }
-      hit.resize(query_trials.size());
-      scene.overlaps(query_trials.data(), exclude.data(), query_trials.size(), hit.data(), threads);
-      moving.clear();
-      moved.clear();
-      for (std::size_t q = 0; q < hit.size(); ++q) {
-        if (hit[q] != MovingScene::none) continue;
-        const std::size_t k = query_slot[q];
-        moving.push_back(trial_particle[k]);
-        moved.push_back(query_trials[q]);
-        s.orientation[trial_particle[k]] = trial_orientation[k];
-      }
-      scene.move_many(moving.data(), moved.data(), moving.size(), threads);
-      report.accepted += moving.size();
-    }
+    report.proposed += proposed;
+    report.accepted += accepted;
+    report.left_domain += left;
   }
   finish_sweep(report, start);
   return report;

@@ -562,6 +562,28 @@ void MovingScene::move(std::size_t i, const Particle& p) {
   ++s.counters.moves;
 }
 
+bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
+  Impl& s = *impl_;
+  // Checks first (no exception may leave a parallel region: false instead).
+  if (i >= s.store.size() || !(p.bounding_radius() <= s.grid_radius) ||
+      (p.type() != ParticleStore::untyped && p.type() >= s.store.types()))
+    return false;
+  bool inside = true;
+  const std::size_t to = s.cell_of(p.centre(), &inside);
+  const std::size_t from = std::size_t(s.where[i] / s.capacity);
+  if (!inside && !s.outside[i]) return false;  // (open boxes: the count is shared)
+  if (to != from && s.count[to] == s.capacity) return false;
+  s.store.set_particle(i, p);
+  if (to == from) {
+    s.write_slot(s.where[i], i);
+  } else {
+    s.vacate(i);
+    s.occupy(i, to);
+  }
+  s.outside[i] = !inside;
+  return true;
+}
+
 void MovingScene::move_many(const std::uint32_t* index, const Particle* particles, std::size_t count,
                       int threads) {
   Impl& s = *impl_;
