@@ -308,6 +308,10 @@ TEST(MovingScene, ParallelMovesAreTheMovesOneAfterAnother) {
           << "round " << round << ", particle " << i;
   }
   for (int k = 0; k < 3; ++k) EXPECT_EQ(parallel.particles().centre(k), serial.particles().centre(k));
+  EXPECT_EQ(parallel.counters().moves, serial.counters().moves);
+  EXPECT_EQ(parallel.counters().cell_changes, serial.counters().cell_changes);
+  EXPECT_GT(serial.counters().cell_changes, 0u);
+  EXPECT_EQ(serial.counters().rebuilds, 1u) << "small moves need no rebuild";
   for (std::size_t i = 0; i < s.size(); ++i) {
     const Particle p = serial.particles().particle_at(i);
     EXPECT_EQ(parallel.overlaps(p, std::int64_t(i)), serial.overlaps(p, std::int64_t(i))) << i;

@@ -51,10 +51,7 @@ struct Neighbor {
 struct MovingSceneCounters {
   std::size_t rebuilds = 0;       // of the whole grid (overflow, size, open-box drift)
   std::size_t cell_changes = 0;   // moves that took a particle to another cell
-  std::size_t moves = 0, inserts = 0, removes = 0;
-  std::size_t queries = 0;        // single queries (a batch counts its trials)
-  std::size_t candidates = 0;     // pairs past the coarse distance test
-  std::size_t solved = 0;         // pairs given to the overlap kernels
+  std::size_t moves = 0, inserts = 0, removes = 0;  // (queries are const: not counted)
 };
 
 class MovingScene {
