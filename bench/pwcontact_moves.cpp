@@ -116,8 +116,12 @@ const World& world(double packing, bool small = false) {
       for (int b = 0; b < copies; ++b)
         for (int c = 0; c < copies; ++c)
           for (std::size_t i = 0; i < small.size(); ++i) {
-            const std::array<double, 3> centre = {small.centre(0)[i] + a * l, small.centre(1)[i] + b * l,
-                                                  small.centre(2)[i] + c * l};
+            // Each centre wrapped into the small box first (Monte Carlo moves
+            // take them anywhere): the copies then fill the large box, and a
+            // scene without periodic images (FCL's) sees every neighbour of
+            // a particle away from the faces.
+            auto wrapped = [&](int k) { return small.centre(k)[i] - l * std::floor(small.centre(k)[i] / l); };
+            const std::array<double, 3> centre = {wrapped(0) + a * l, wrapped(1) + b * l, wrapped(2) + c * l};
             s.particles.add_axes(centre, mc.semi_axes()[i], mc.orientation()[i]);
             s.semi_axes.push_back(mc.semi_axes()[i]);
             s.orientation.push_back(mc.orientation()[i]);
