@@ -57,6 +57,17 @@ int CellLists::cell_of(const ClassGrid& grid, int k, double u) const {
   return c >= double(n - 1) ? n - 1 : (c > 0 ? int(c) : 0);
 }
 
+double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
+                    const std::array<double, 3>& high) {
+  double scale = reach;
+  for (int k = 0; k < 3; ++k)
+    scale = geometry.periodic[k]
+                ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
+                                      std::abs(geometry.h[k][2]))
+                : std::max({scale, std::abs(low[k]), std::abs(high[k])});
+  return 1e3 * std::numeric_limits<double>::epsilon() * scale;
+}
+
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
                            int threads) {
   CellLists lists;
@@ -115,18 +126,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
   }
   lists.origin = low;
-  // The coarse test's slack: the wrapped positions are within a few eps of
-  // the largest coordinate (or box length) of their exact values, and the
-  // reach within a few eps of the largest reach; a thousand times both.
-  // (Periodic: the wrapped positions, within the box whatever the centres:
-  // their coordinates at most the sum of a row of h.)
-  double scale = 2 * cutoff * largest;
-  for (int k = 0; k < 3; ++k)
-    scale = geometry.periodic[k]
-                ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
-                                      std::abs(geometry.h[k][2]))
-                : std::max({scale, std::abs(low[k]), std::abs(high[k])});
-  lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
+  lists.slack = coarse_slack(geometry, 2 * cutoff * largest, low, high);
   lists.largest_reach = cutoff * largest;
 
   // Classes, then only the non-empty ones, largest radii first.

@@ -210,6 +210,15 @@ struct CellLists {
   int cell_of(const ClassGrid& grid, int k, double u) const;
 };
 
+// The coarse test's slack for a largest reach and the extent [low, high] of
+// the centres along the open axes: the wrapped positions are within a few
+// eps of the largest coordinate (or box length) of their exact values, and
+// the reach within a few eps of itself; a thousand times both. (Periodic:
+// the wrapped positions, within the box whatever the centres: their
+// coordinates at most the sum of a row of h.)
+double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
+                    const std::array<double, 3>& high);
+
 // Builds the classes and their grids (threads for the per-particle work).
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
                            int threads);

@@ -192,14 +192,7 @@ struct MovingScene::Impl {
       low[k] = lo;
       high[k] = hi;
     }
-    // The slack of the cells' rounding, as the screening's (cell_lists.cpp).
-    double scale = 2 * cutoff * radius;
-    for (int k = 0; k < 3; ++k)
-      scale = geometry.periodic[k]
-                  ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
-                                        std::abs(geometry.h[k][2]))
-                  : std::max({scale, std::abs(low[k]), std::abs(high[k])});
-    lists.slack = 1e3 * std::numeric_limits<double>::epsilon() * scale;
+    lists.slack = screen::coarse_slack(geometry, 2 * cutoff * radius, low, high);
     lists.largest_reach = cutoff * radius;
     // Open axes: the region covered reaches a cell beyond the particles on
     // each side, for the ones that move a little.
