@@ -789,6 +789,23 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
 // ---------------------------------------------------------------------------
 // A maximiser a few thousand ulps from 1
 
+// An ordinary shape beside a form ~1e-12 .. 1e-30 along one axis and ~1e-30
+// .. 1e-300 along the other two (both orders), mu in [0.5, 2].
+std::vector<Pair<double>> huge_along_two_axes_pairs(int n, std::uint64_t seed) {
+  Engine engine(seed);
+  std::vector<Pair<double>> base;
+  for (int k = 0; k < n; ++k) {
+    std::array<double, 3> d;
+    for (double& x : d) x = std::pow(10.0, -30 - 270 * uniform01(engine));
+    d[k % 3] = std::pow(10.0, -12 - 18 * uniform01(engine));
+    const pwcontact::QuadraticForm huge = {d[0], 0, 0, d[1], 0, d[2]};
+    const auto n3 = direction(engine);
+    const auto other = ordinary_shape(engine);
+    base.push_back(k % 2 ? make_pair(n3, huge, other) : make_pair(n3, other, huge));
+  }
+  return placed(base, engine);
+}
+
 TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
   // Was (found by kernels_fuzz): Q1 ~1 (off-diagonal), Q2 = diag(8e-305,
   // 1.7e-307, 4.9e-25), r12 ~(1.8, 1.9, 0): lambda* = 1 - 2.35e-13, and the
@@ -799,18 +816,7 @@ TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
   // axis and ~1e-30 .. 1e-300 along the other two (both orders), mu in
   // [0.5, 2]: lambda* within ~1e-6 .. 1e-15 of 1 (or of 0), cond(Q(lambda*))
   // moderate, so that the floor is tight.
-  Engine engine(933);
-  std::vector<Pair<double>> base;
-  for (int n = 0; n < 96; ++n) {
-    std::array<double, 3> d;
-    for (double& x : d) x = std::pow(10.0, -30 - 270 * uniform01(engine));
-    d[n % 3] = std::pow(10.0, -12 - 18 * uniform01(engine));
-    const pwcontact::QuadraticForm huge = {d[0], 0, 0, d[1], 0, d[2]};
-    const auto n3 = direction(engine);
-    const auto other = ordinary_shape(engine);
-    base.push_back(n % 2 ? make_pair(n3, huge, other) : make_pair(n3, other, huge));
-  }
-  const Solved set = solved(placed(base, engine));
+  const Solved set = solved(huge_along_two_axes_pairs(96, 933));
   for (std::size_t i = 0; i < set.pairs.size(); ++i)
     ASSERT_EQ(set.exact[i].status, Status::ok) << "the oracle answers every pair, pair " << i;
   // Float cannot hold the form's entries below ~1e-38 (nor mu^2 of a form
@@ -846,6 +852,71 @@ TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
   }
   print_measured("a form 1e6 .. 1e150 times larger along two axes, scalar path, "
                  "error / (eps cond(Q(lambda*)))", ratio);
+}
+
+// ---------------------------------------------------------------------------
+// Warm starts
+
+// A warm start (PairBatchView::lambda_start) takes one Newton step and the
+// convergence check, and makes the cheaper checks of the mixed-precision
+// double block: whatever lambda it is given, the answers keep the promise of
+// a cold start, on the families where lambda* is hardest to reach.
+TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
+  struct Family {
+    const char* name;
+    Solved set;
+  };
+  const Family families[] = {
+      {"sizes 1e5 .. 1e12 apart", solved(size_ratio_pairs(400, 5, 12, 941))},
+      {"crossed needles and discs, aspect 30 .. 1e7", solved(crossed_pairs(300, 1.5, 7, 942))},
+      {"a form 1e6 .. 1e150 times larger along two axes", solved(huge_along_two_axes_pairs(96, 943))},
+  };
+  const char* start_names[] = {"the exact lambda", "lambda* (1 + 1e-3)", "1e-300", "1 - 1e-16",
+                               "0.5", "NaN"};
+  for (const Family& family : families) {
+    const std::size_t n = family.set.pairs.size();
+    const PairBatch<double> batch = make_batch(family.set.pairs);
+    double reference_lambda_error = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const ContactResult<double> r = reference(family.set.pairs[i]);
+      if (r.status == Status::ok)
+        reference_lambda_error =
+            std::max(reference_lambda_error, absolute_error(r.lambda, family.set.exact[i].lambda));
+    }
+    for (int kind = 0; kind < 6; ++kind) {
+      std::vector<double> start(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double exact = double(family.set.exact[i].lambda);
+        const double choices[6] = {exact, std::min(exact * (1 + 1e-3), 1 - 1e-9), 1e-300, 1 - 1e-16,
+                                   0.5, std::numeric_limits<double>::quiet_NaN()};
+        start[i] = choices[kind];
+      }
+      for (bool with_lambda : {false, true}) {
+        const std::string label = what(family.name, GetParam(), Precision::double_precision) +
+                                  ", warm from " + start_names[kind] +
+                                  (with_lambda ? ", with lambda" : ", mu2 alone");
+        BatchRun<double> run;
+        run.mu2.assign(n, 0);
+        run.lambda.assign(n, 0);
+        run.status.assign(n, Status::ok);
+        pwcontact::PairBatchView<double> view = batch.view();
+        view.lambda_start = start.data();
+        pwcontact::contact_function_batch(
+            view, {run.mu2.data(), with_lambda ? run.lambda.data() : nullptr, run.status.data()},
+            with_precision(with_isa(GetParam()), Precision::double_precision));
+        const Broken b = expect_promise_kept(family.set, run, eps, never, label);
+        if (kind == 1) print_broken(label, b);
+        if (!with_lambda) continue;
+        // lambda held as the cold start's is (LambdaAndTheGeometry...): within
+        // 4 times the reference path's largest error on the family, + 1e-12.
+        double worst = 0;
+        for (std::size_t i = 0; i < n; ++i)
+          if (pwcontact::is_valid(run.status[i]))
+            worst = std::max(worst, absolute_error(run.lambda[i], family.set.exact[i].lambda));
+        EXPECT_LE(worst, 4 * reference_lambda_error + 1e-12) << label;
+      }
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------

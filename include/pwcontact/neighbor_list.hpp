@@ -19,7 +19,10 @@
 //
 // Warm start: the pairs of a kept list are solved again from the lambda
 // each had at the last step (PairBatchView::lambda_start), which the
-// double-precision kernels start their Newton iteration from.
+// double-precision kernels start their Newton iteration from: one step and
+// the convergence check, where a cold start takes three and the check. The
+// pairs are gathered and solved a chunk at a time over the threads (a chunk
+// stays in cache between the gather and the solve).
 #pragma once
 
 #include <cstddef>
@@ -45,6 +48,8 @@ struct SkinReport {
   std::size_t solved = 0;       // pairs solved this step
   std::size_t found = 0;        // pairs with mu < cutoff
   double mean_evaluations = 0;  // per solved pair
+  // seconds_solve: the time in the solver (summed over the chunks and
+  // threads, divided by the threads); seconds_total: the whole update.
   double seconds_solve = 0, seconds_total = 0;
 };
 

@@ -204,7 +204,10 @@ class FullBlock : public LaneGroups<Arch, T> {
       const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
       B guess = w1 / (w1 + w2);
       // A warm start (a previous solve's lambda) where one is given and
-      // inside (0, 1); the radial guess elsewhere (NaN: none).
+      // inside (0, 1); the radial guess elsewhere (NaN: none). The checks are
+      // the cold start's whichever: those of the mixed-precision double block
+      // (the entries' range, without the slopes) let lanes of forms with
+      // entries near 1e-300 through to answers 30 % wrong.
       if constexpr (std::is_same<T, In>::value) {
         if (in.lambda_start) {
           const B given = B::load_unaligned(in.lambda_start + from + std::size_t(u) * W);
@@ -320,10 +323,16 @@ class FullBlock : public LaneGroups<Arch, T> {
       // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
       // ulp of f finishes it, with the answer f (and, when lambda is asked
       // for, the same bound on the step).
-      // The model is Newton's whatever the formulation (for Newton's own, the
-      // step g / g' was just taken: no second division).
+      // The model is Newton's whatever the formulation. Its step is g / g'
+      // as divided, never the difference of lambda before and after the step
+      // taken: where lambda* lies within a few thousand ulps of 0 or 1, a
+      // step below half an ulp of lambda rounds to no step at all, and a
+      // rounded-away step would pass every test above with a gain of 0 (was:
+      // started at 1 - 1e-16 beside lambda* = 1 - 1e-12, mu^2 1e-8 low with
+      // status ok). Such a lane cannot move; it goes on to the reference path,
+      // which seeks a maximiser near 1 on the mirrored pair.
       const bool newton_formulation = settings_.formulation == Formulation::newton;
-      const B step = newton_formulation ? e.lambda - lambda_[u] : e.g / e.dg;
+      const B step = e.g / e.dg;
       const B newton_lambda = e.lambda - step;
       const M in_bracket =
           newton_formulation ? newton : (lo_[u] <= newton_lambda) & (newton_lambda <= hi_[u]);
@@ -535,9 +544,10 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
   const StateByPosition<T> state = state_by_position<T>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
   // A warm start (lambda_start given) is a Newton step or so from the
-  // answer: one evaluation fewer before the check.
+  // answer: one step and the check (lanes that fail it go on in the later
+  // passes, one evaluation each).
   const bool warm = std::is_same<T, In>::value && in.lambda_start != nullptr;
-  const int first = automatic ? first_pass_evaluations<T>(settings) - (warm ? 1 : 0)
+  const int first = automatic ? (warm ? 2 : first_pass_evaluations<T>(settings))
                               : settings.iterations;
   const Handoff handoff = automatic && first < settings.max_iterations ? Handoff::adaptive
                                                                        : Handoff::none;

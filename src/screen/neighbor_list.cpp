@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "parallel_errors.hpp"
 #include "screen/cell_lists.hpp"
 
 namespace pwcontact {
@@ -97,57 +98,104 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     return report;
   }
   // The listed pairs whose bounding spheres (scaled by the cutoff) meet now,
-  // solved from their last lambda.
+  // solved from their last lambda: gathered and solved a chunk at a time, so
+  // that the pairs the kernels read (15 numbers each) are still in cache (a
+  // batch of the whole list would be written to memory and read back).
   const std::size_t listed = first_.size();
-  std::vector<std::uint32_t> which;
-  PairBatch<double> batch;
-  std::vector<double> guess;
-  const std::vector<double>& bounding = particles.bounding_radius();
-  for (std::size_t k = 0; k < listed; ++k) {
-    const std::uint32_t i = first_[k], j = second_[k];
-    double r[3];
-    for (int c = 0; c < 3; ++c) r[c] = particles.centre(c)[j] - particles.centre(c)[i];
-    geometry.minimum_image(r);
-    const double reach = cutoff * (bounding[i] + bounding[j]);
-    if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach) continue;
-    double qi[6], qj[6];
-    for (int c = 0; c < 6; ++c) {
-      qi[c] = particles.q(c)[i];
-      qj[c] = particles.q(c)[j];
+  // Each particle's numbers side by side (80 bytes, where the store keeps
+  // them in ten arrays): a pair's second particle is anywhere in memory, and
+  // its gather then touches two cache lines, not ten.
+  struct Packed {
+    double centre[3], q[6], bounding;
+  };
+  std::vector<Packed> packed(n);
+  {
+    const std::vector<double>& bounding = particles.bounding_radius();
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::size_t i = 0; i < n; ++i) {
+      Packed& p = packed[i];
+      for (int d = 0; d < 3; ++d) p.centre[d] = particles.centre(d)[i];
+      for (int d = 0; d < 6; ++d) p.q[d] = particles.q(d)[i];
+      p.bounding = bounding[i];
     }
-    batch.push_back(r, qi, qj);
-    which.push_back(std::uint32_t(k));
-    guess.push_back(lambda_[k]);
   }
-  const std::size_t m = which.size();
-  std::vector<double> mu2(m), lambda(m);
-  std::vector<Status> status(m);
-  PairBatchView<double> view = batch.view();
-  if (options_.warm_start) view.lambda_start = guess.data();
-  BatchOptions batch_options = options_.batch;
-  batch_options.threads = threads;
-  const double solve_start = now();
-  const BatchReport solved =
-      contact_function_batch(view, {mu2.data(), lambda.data(), status.data()}, batch_options);
-  report.seconds_solve = now() - solve_start;
+  std::vector<double> mu2(listed, std::numeric_limits<double>::quiet_NaN());
+  std::vector<Status> status(listed, Status::ok);
+  std::vector<std::uint8_t> solved(listed, 0);
+  const std::size_t chunk = 2048;
+  const std::size_t chunks = (listed + chunk - 1) / chunk;
+  std::size_t solved_count = 0;
+  double evaluations = 0, seconds_solve = 0;
+  detail::ParallelErrors errors;
+#pragma omp parallel num_threads(threads) reduction(+ : solved_count, evaluations, seconds_solve)
+  {
+    PairBatch<double> batch;
+    batch.reserve(chunk);
+    std::vector<std::uint32_t> which;
+    std::vector<double> guess, chunk_mu2, chunk_lambda;
+    std::vector<Status> chunk_status;
+    BatchOptions batch_options = options_.batch;
+    batch_options.threads = 1;
+#pragma omp for schedule(dynamic, 4)
+    for (std::size_t c = 0; c < chunks; ++c) {
+      errors.run([&] {
+        batch.resize(0);  // (capacity kept)
+        which.clear();
+        guess.clear();
+        for (std::size_t k = c * chunk; k < std::min(listed, (c + 1) * chunk); ++k) {
+          const Packed& a = packed[first_[k]];
+          const Packed& b = packed[second_[k]];
+          double r[3];
+          for (int d = 0; d < 3; ++d) r[d] = b.centre[d] - a.centre[d];
+          geometry.minimum_image(r);
+          const double reach = cutoff * (a.bounding + b.bounding);
+          if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach) continue;
+          batch.push_back(r, a.q, b.q);
+          which.push_back(std::uint32_t(k));
+          guess.push_back(lambda_[k]);
+        }
+        const std::size_t m = which.size();
+        chunk_mu2.resize(m);
+        chunk_lambda.resize(m);
+        chunk_status.resize(m);
+        PairBatchView<double> view = batch.view();
+        if (options_.warm_start) view.lambda_start = guess.data();
+        const double solve_start = now();
+        const BatchReport r = contact_function_batch(
+            view, {chunk_mu2.data(), chunk_lambda.data(), chunk_status.data()}, batch_options);
+        seconds_solve += now() - solve_start;
+        evaluations += r.mean_evaluations * double(m);
+        solved_count += m;
+        for (std::size_t s = 0; s < m; ++s) {
+          const std::size_t k = which[s];
+          mu2[k] = chunk_mu2[s];
+          status[k] = chunk_status[s];
+          solved[k] = 1;
+          lambda_[k] = chunk_lambda[s];
+        }
+      });
+    }
+  }
+  errors.rethrow_if_failed();
+  // (seconds_solve summed over threads: the solve's share of the wall time.)
+  report.seconds_solve = seconds_solve / threads;
   out = ScreenedPairs();
-  for (std::size_t s = 0; s < m; ++s) {
-    const std::size_t k = which[s];
-    if (!is_valid(status[s]) && status[s] != Status::out_of_range)
+  for (std::size_t k = 0; k < listed; ++k) {
+    if (!solved[k]) continue;
+    if (!is_valid(status[k]) && status[k] != Status::out_of_range)
       throw std::runtime_error("SkinNeighborList: the pair (" + std::to_string(first_[k]) + ", " +
                                std::to_string(second_[k]) + ") has no answer (" +
-                               status_name(status[s]) + ")");
-    lambda_[k] = lambda[s];
-    if (mu2[s] < cutoff * cutoff) {
+                               status_name(status[k]) + ")");
+    if (mu2[k] < cutoff * cutoff) {
       out.i.push_back(first_[k]);
       out.j.push_back(second_[k]);
-      out.mu2.push_back(mu2[s]);
+      out.mu2.push_back(mu2[k]);
     }
   }
   report.listed = listed;
-  report.solved = m;
+  report.solved = solved_count;
   report.found = out.size();
-  report.mean_evaluations = solved.mean_evaluations;
+  report.mean_evaluations = solved_count ? evaluations / double(solved_count) : 0;
   report.seconds_total = now() - start;
   return report;
 }
