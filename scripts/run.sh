@@ -35,6 +35,10 @@ packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-d
 [ "$job" = moves-bench ] && packages+=(libfcl-dev)  # the baseline of the trial moves
 # The scene-file tests also read back what they write with the gsd package.
 case "$job" in test|sanitize) packages+=(python3-gsd) ;; esac
+# The release preset builds the Python module (pybind11, numpy) against
+# /usr/bin/python3, and the tests run it with pytest.
+case "$job" in sanitize|fuzz|tsan) ;;
+  *) packages+=(pybind11-dev python3-dev python3-numpy python3-pytest python3-gsd) ;; esac
 # libFuzzer and ThreadSanitizer come with clang; LLVM's OpenMP runtime is
 # the one ThreadSanitizer understands.
 case "$job" in fuzz|tsan) packages+=(clang-14 libclang-rt-14-dev libomp-14-dev) ;; esac

@@ -1,0 +1,533 @@
+"""The Perram-Wertheim contact function of ellipsoids, for many pairs at once.
+
+mu is the factor by which two ellipsoids must both be scaled about their
+centres to touch: mu**2 < 1 they overlap, > 1 they are apart. An ellipsoid is
+given by its centre and its quadratic form Q (symmetric positive definite, 6
+numbers: the upper triangle row by row, Q = R diag(a**2) R^T for semi-axes a
+and rotation R); a pair by r12 = c2 - c1 and its two forms.
+
+Arrays are numpy arrays (anything numpy converts); pairs are rows: r12 of
+shape (N, 3), q1 and q2 of shape (N, 6), any of them of shape (3,) or (6,) to
+broadcast one against many. float32 pairs are solved as float pairs (float32
+results) unless another precision is asked for; every other dtype in double.
+An array of the dtype computed in is read where it lies, whatever its
+strides (no copy); another dtype is converted first (a copy). Per-pair
+problems (a form that is not positive definite, a non-finite number) are
+statuses, never exceptions; malformed calls (shapes, unknown options) raise
+ValueError. The GIL is released during every computation.
+
+Everything here is documented with the library's conventions in README.md.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from typing import Any, Iterable, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _pwcontact as _core
+
+__all__ = [
+    "Box",
+    "ContactResult",
+    "MovingScene",
+    "OverlapResult",
+    "ScreenResult",
+    "Status",
+    "contact_function",
+    "overlap",
+    "quadratic_form",
+    "read_gsd",
+    "read_lammps_data",
+    "read_lammps_dump",
+    "screen",
+    "sphere",
+    "spheroid",
+    "spheroid_scene",
+    "supported_isas",
+]
+
+Status = enum.IntEnum("Status", [(name, code) for code, (name, _) in enumerate(_core.status_names())])
+Status.__doc__ = "Per-pair status codes (the status arrays hold these values, as uint8)."
+STATUS_DESCRIPTIONS = {Status(code): text for code, (_, text) in enumerate(_core.status_names())}
+
+
+def is_valid(status: Any) -> Any:
+    """True where a status says the answer is valid (ok or ok_fallback)."""
+    s = np.asarray(status)
+    return (s == Status.ok) | (s == Status.ok_fallback)
+
+
+def supported_isas() -> list:
+    """The instruction sets this CPU runs, best first (e.g. ['avx512', 'avx2', 'sse2'])."""
+    return _core.supported_isas()
+
+
+class _Result:
+    """Arrays by attribute and by key, and the call's report as attributes."""
+
+    def __init__(self, arrays: dict, report: dict):
+        self._arrays = arrays
+        self.report = report
+        for key, value in report.items():
+            setattr(self, key, value)
+
+    def __getitem__(self, key: str):
+        return self._arrays[key]
+
+    def __contains__(self, key: str) -> bool:
+        return key in self._arrays
+
+    def keys(self):
+        return self._arrays.keys()
+
+    def __repr__(self) -> str:
+        shapes = ", ".join(f"{k}{tuple(np.shape(v))}" for k, v in self._arrays.items())
+        return f"{type(self).__name__}({shapes}; {self.report})"
+
+
+class ContactResult(_Result):
+    """What contact_function computed.
+
+    Arrays (by attribute, or by key): ``mu2`` (N,), ``lambda_`` (also
+    ``result["lambda"]``, the maximiser lambda_0) when asked for, ``status``
+    (N,) uint8 (see Status), and ``contact_point``, ``normal``, ``gradient``
+    (N, 3) when asked for (views of (3, N) arrays: columns contiguous).
+    Report attributes: ``pairs``, ``fallbacks`` (pairs the SIMD kernels left to
+    the scalar reference path), ``invalid`` (pairs with an invalid status),
+    ``mean_evaluations``, ``isa``, ``precision``.
+    """
+
+    @property
+    def mu2(self):
+        return self._arrays["mu2"]
+
+    @property
+    def lambda_(self):
+        return self._arrays["lambda"]
+
+    @property
+    def status(self):
+        return self._arrays["status"]
+
+    @property
+    def contact_point(self):
+        return self._arrays["contact_point"]
+
+    @property
+    def normal(self):
+        return self._arrays["normal"]
+
+    @property
+    def gradient(self):
+        return self._arrays["gradient"]
+
+
+class OverlapResult(_Result):
+    """What overlap computed: ``overlap`` (N,) bool (mu < cutoff) and ``status``
+    (N,) uint8; report attributes as ContactResult's, with
+    ``decided_by_prefilter``, ``decided_by_certificate`` and ``overlapping``."""
+
+    @property
+    def overlap(self):
+        return self._arrays["overlap"]
+
+    @property
+    def status(self):
+        return self._arrays["status"]
+
+
+_OUTPUTS = ("mu2", "lambda", "contact_point", "normal", "gradient")
+
+
+def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
+                     precision: str = "auto", iterations: Union[str, int] = "auto",
+                     accuracy: str = "standard", threads: int = 0, isa: str = "auto",
+                     lambda_start=None) -> ContactResult:
+    """mu**2 (and what else is asked for) of every pair.
+
+    r12: (N, 3) or (3,); q1, q2: (N, 6) or (6,) (upper triangles, row-major).
+    outputs: any of "mu2", "lambda", "contact_point", "normal", "gradient"
+    (mu2 and status are always computed; the others cost only when asked).
+    precision: "auto" (float32 pairs in float, else double), "double",
+    "float", "mixed". iterations: "auto" (each pair until its convergence
+    check passes) or a fixed count 1 .. 40. accuracy: "standard" or "high".
+    threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512".
+    lambda_start: optional (N,) array, a lambda to start each pair from (a
+    warm start, e.g. the previous step's; NaN for none).
+
+    Returns a ContactResult. Raises ValueError for shapes and option values.
+    """
+    names = list(outputs)
+    for name in names:
+        if name not in _OUTPUTS:
+            raise ValueError(f"unknown output {name!r} (outputs: {', '.join(_OUTPUTS)})")
+    raw = _core.contact_function(r12, q1, q2, names, precision, iterations, accuracy, threads, isa,
+                                 lambda_start)
+    report = raw.pop("report")
+    if "mu2" not in names:
+        raw.pop("mu2", None)
+    return ContactResult(raw, report)
+
+
+def overlap(r12, q1, q2, cutoff: float = 1.0, *, precision: str = "auto",
+            iterations: Union[str, int] = "auto", threads: int = 0, isa: str = "auto") -> OverlapResult:
+    """Whether mu < cutoff for every pair, decided with certificates (most
+    pairs without a full solve). Arguments as contact_function's; cutoff
+    positive and finite. In double precision the answer agrees with
+    mu**2 < cutoff**2 wherever |mu**2 - cutoff**2| > 1e-9 cutoff**2 (README:
+    the overlap bound). Returns an OverlapResult."""
+    raw = _core.overlap(r12, q1, q2, float(cutoff), precision, iterations, threads, isa)
+    report = raw.pop("report")
+    return OverlapResult(raw, report)
+
+
+def quadratic_form(semi_axes, orientation) -> np.ndarray:
+    """Q = R diag(a**2) R^T of every particle: semi_axes (N, 3) or (3,),
+    orientation (N, 4) or (4,) unit quaternions (w, x, y, z), as HOOMD-blue
+    and GSD give them (normalised when not unit; zero raises ValueError).
+    Returns (N, 6) float64."""
+    return _core.quadratic_form(semi_axes, orientation)
+
+
+def sphere(radius: float) -> np.ndarray:
+    """Q of a sphere of the given radius (6,)."""
+    r = float(radius)
+    if not (r > 0 and math.isfinite(r)):
+        raise ValueError(f"radius must be positive and finite, got {radius!r}")
+    return np.array([r * r, 0, 0, r * r, 0, r * r])
+
+
+def spheroid(a: float, c: float, axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """Q of a spheroid (6,): equatorial radius a, polar radius c along the unit
+    axis n: Q = a**2 I + (c**2 - a**2) n n^T."""
+    n = np.asarray(axis, dtype=float)
+    norm = np.linalg.norm(n)
+    if not (norm > 0 and np.isfinite(norm)):
+        raise ValueError(f"axis must be non-zero and finite, got {axis!r}")
+    for name, v in (("a", a), ("c", c)):
+        if not (float(v) > 0 and math.isfinite(float(v))):
+            raise ValueError(f"{name} must be positive and finite, got {v!r}")
+    n = n / norm
+    m = a * a * np.eye(3) + (c * c - a * a) * np.outer(n, n)
+    return np.array([m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2], m[2, 2]])
+
+
+class Box:
+    """A simulation box in HOOMD-blue's and freud's convention: lengths Lx,
+    Ly, Lz and unitless tilt factors xy, xz, yz (box matrix columns
+    (Lx, 0, 0), (xy Ly, Ly, 0), (xz Lz, yz Lz, Lz)); periodic along every
+    axis (``periodic=False``: open, no images); 2D boxes (``is2D``) hold
+    ellipses in the z = 0 plane."""
+
+    def __init__(self, Lx: float, Ly: float, Lz: float = 0.0, xy: float = 0.0, xz: float = 0.0,
+                 yz: float = 0.0, is2D: bool = False, periodic: bool = True):
+        self.Lx, self.Ly, self.Lz = float(Lx), float(Ly), float(Lz)
+        self.xy, self.xz, self.yz = float(xy), float(xz), float(yz)
+        self.is2D = bool(is2D)
+        self.periodic = bool(periodic)
+        if self.is2D:
+            self.Lz, self.xz, self.yz = 0.0, 0.0, 0.0
+        lengths = (self.Lx, self.Ly) if self.is2D else (self.Lx, self.Ly, self.Lz)
+        if self.periodic and not all(L > 0 and math.isfinite(L) for L in lengths):
+            raise ValueError(f"box lengths must be positive and finite, got {lengths}")
+        if not all(math.isfinite(t) for t in (self.xy, self.xz, self.yz)):
+            raise ValueError("box tilts must be finite")
+
+    @classmethod
+    def cube(cls, L: float) -> "Box":
+        return cls(L, L, L)
+
+    @classmethod
+    def open(cls) -> "Box":
+        """No box: no periodic images."""
+        return cls(0, 0, 0, periodic=False)
+
+    @classmethod
+    def from_box(cls, box: Any, dimensions: Optional[int] = None) -> "Box":
+        """A Box from what HOOMD-blue, freud and GSD hold: a Box; a sequence
+        [Lx, Ly] (2D), [Lx, Ly, Lz] or [Lx, Ly, Lz, xy, xz, yz] (GSD's
+        configuration/box; Lz = 0 or dimensions=2 is 2D); a dict with keys
+        Lx, Ly, Lz, xy, xz, yz (and dimensions); or any object with those
+        attributes (freud.box.Box, hoomd.Box: is2D or dimensions)."""
+        if isinstance(box, Box):
+            return box
+        if isinstance(box, Mapping):
+            get = box.get
+            two_d = bool(get("is2D", False)) or get("dimensions", dimensions) == 2 or float(get("Lz", 0)) == 0
+            return cls(get("Lx"), get("Ly"), get("Lz", 0), get("xy", 0), get("xz", 0), get("yz", 0), is2D=two_d)
+        if all(hasattr(box, k) for k in ("Lx", "Ly", "Lz")):
+            two_d = bool(getattr(box, "is2D", False)) or getattr(box, "dimensions", dimensions) == 2
+            return cls(box.Lx, box.Ly, box.Lz, getattr(box, "xy", 0), getattr(box, "xz", 0),
+                       getattr(box, "yz", 0), is2D=two_d)
+        values = [float(v) for v in np.asarray(box, dtype=float).ravel()]
+        if len(values) == 2:
+            return cls(values[0], values[1], 0, is2D=True)
+        if len(values) == 3:
+            values += [0.0, 0.0, 0.0]
+        if len(values) != 6:
+            raise ValueError(f"a box is [Lx, Ly], [Lx, Ly, Lz] or [Lx, Ly, Lz, xy, xz, yz]; got {len(values)} numbers")
+        two_d = dimensions == 2 or values[2] == 0
+        return cls(*values, is2D=two_d)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The box matrix (columns are the box vectors)."""
+        return np.array([[self.Lx, self.xy * self.Ly, self.xz * self.Lz],
+                         [0.0, self.Ly, self.yz * self.Lz],
+                         [0.0, 0.0, self.Lz]])
+
+    def wrap_vectors(self, d) -> np.ndarray:
+        """Minimum images of separation vectors (N, 3) (unchanged in an open box)."""
+        d = np.array(d, dtype=float, copy=True)
+        if not self.periodic:
+            return d
+        m = self.matrix
+        if self.is2D:
+            m = m.copy()
+            m[2, 2] = 1.0
+        f = np.linalg.solve(m, d.T).T
+        axes = 2 if self.is2D else 3
+        f[:, :axes] -= np.round(f[:, :axes])
+        return (m @ f.T).T
+
+    def _core(self):
+        if not self.periodic:
+            return None
+        return (self.Lx, self.Ly, self.Lz, self.xy, self.xz, self.yz, 2 if self.is2D else 3)
+
+    def __repr__(self) -> str:
+        if not self.periodic:
+            return "Box.open()"
+        return (f"Box(Lx={self.Lx}, Ly={self.Ly}, Lz={self.Lz}, xy={self.xy}, xz={self.xz}, "
+                f"yz={self.yz}, is2D={self.is2D})")
+
+
+def _as_box(box) -> Optional[Box]:
+    if box is None:
+        return None
+    return Box.from_box(box)
+
+
+class ScreenResult:
+    """The pairs a screen found.
+
+    ``pairs`` (M, 2) uint32, each (i, j) with i < j, sorted; ``mu2`` (M,) when
+    asked for (else None); ``counts`` (N,) uint32, the pairs each particle is
+    in; ``offsets`` (N + 1,) int64, so that pairs[offsets[i]:offsets[i + 1]]
+    are the pairs (i, j > i); ``report`` (a dict of the screen's counters).
+    """
+
+    def __init__(self, raw: dict, positions: np.ndarray, box: Optional[Box]):
+        self.pairs = raw["pairs"]
+        self.mu2 = raw["mu2"]
+        self.counts = raw["counts"]
+        self.offsets = raw["offsets"]
+        self.report = raw["report"]
+        self._positions = positions
+        self._box = box
+
+    def __len__(self) -> int:
+        return len(self.pairs)
+
+    def to_freud_arrays(self) -> dict:
+        """The keyword arguments of freud.locality.NeighborList.from_arrays:
+        num_query_points, num_points, query_point_indices, point_indices and
+        vectors (minimum images, from query point to point), both directions
+        of every pair, sorted by query point; weights 1."""
+        i, j = self.pairs[:, 0].astype(np.uint32), self.pairs[:, 1].astype(np.uint32)
+        q = np.concatenate([i, j])
+        p = np.concatenate([j, i])
+        order = np.lexsort((p, q))
+        q, p = q[order], p[order]
+        d = self._positions[p] - self._positions[q]
+        if self._box is not None:
+            d = self._box.wrap_vectors(d)
+        n = len(self._positions)
+        return {"num_query_points": n, "num_points": n, "query_point_indices": q,
+                "point_indices": p, "vectors": d, "weights": np.ones(len(q))}
+
+    def __repr__(self) -> str:
+        return f"ScreenResult({len(self.pairs)} pairs)"
+
+
+def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None, typeid=None,
+           box=None, cutoff: float = 1.0, with_mu2: bool = False, threads: int = 0,
+           **ignored) -> ScreenResult:
+    """Every pair of particles with mu < cutoff, exactly (cell lists, exact
+    prefilters, the batch kernels on what they leave).
+
+    positions (N, 3); the shapes one way: ``semi_axes`` (N, 3), or (3,) for
+    one shape (searched as identical shapes), with ``orientations`` (N, 4)
+    quaternions (w, x, y, z) (default: identity); or ``type_semi_axes`` (T, 3)
+    with ``typeid`` (N,) (as GSD gives shapes per type); or ``q`` (N, 6)
+    forms. box: None (open), a Box, or anything Box.from_box takes.
+    cutoff >= 1 reports near pairs too (mu < cutoff). Keyword arguments that
+    read_gsd / read_lammps_* return beside these (type_names, frame, ...)
+    are accepted and ignored, so that ``screen(**read_gsd(path))`` works.
+    """
+    for key in ignored:
+        if key not in ("type_names", "frame", "frames", "id"):
+            raise TypeError(f"screen() got an unexpected keyword argument {key!r}")
+    b = _as_box(box)
+    positions = np.asarray(positions, dtype=float)
+    raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
+                       None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads))
+    return ScreenResult(raw, positions, b)
+
+
+def _gsd_frame(trajectory, frame: int):
+    n = len(trajectory)
+    if n == 0:
+        raise ValueError("the GSD file has no frames")
+    index = frame if frame >= 0 else n + frame
+    if not 0 <= index < n:
+        raise ValueError(f"frame {frame} is not in the file ({n} frames)")
+    return trajectory[index], index, n
+
+
+def read_gsd(path: str, frame: int = -1) -> dict:
+    """Frame `frame` (negative: from the end) of a GSD file, read with the
+    gsd package (python3-gsd; Snapshot and Frame APIs), as the keyword
+    arguments of screen: positions, orientations (w, x, y, z),
+    type_semi_axes (from particles/type_shapes: Ellipsoid a, b, c; Sphere
+    diameter / 2), typeid, box (a Box: configuration/box, 2D by
+    configuration/dimensions), with type_names and frame."""
+    import gsd.hoomd
+
+    with gsd.hoomd.open(path, "rb") as trajectory:
+        snap, index, frames = _gsd_frame(trajectory, frame)
+        particles = snap.particles
+        n = int(particles.N)
+        types = list(particles.types) if particles.types is not None else ["A"]
+        shapes = list(particles.type_shapes) if particles.type_shapes is not None else []
+        axes = []
+        for t, name in enumerate(types):
+            shape = shapes[t] if t < len(shapes) else {}
+            kind = shape.get("type") if isinstance(shape, Mapping) else None
+            if kind == "Ellipsoid":
+                axes.append([float(shape["a"]), float(shape["b"]), float(shape["c"])])
+            elif kind == "Sphere":
+                r = float(shape["diameter"]) / 2
+                axes.append([r, r, r])
+            else:
+                raise ValueError(f"{path}: frame {index}: type {name!r} has no Ellipsoid or Sphere shape "
+                                 f"in particles/type_shapes (got {shape!r})")
+        position = np.asarray(particles.position, dtype=float).reshape(n, 3)
+        orientation = (np.asarray(particles.orientation, dtype=float).reshape(n, 4)
+                       if particles.orientation is not None else np.tile([1.0, 0, 0, 0], (n, 1)))
+        typeid = (np.asarray(particles.typeid, dtype=np.uint32)
+                  if particles.typeid is not None else np.zeros(n, dtype=np.uint32))
+        dimensions = int(snap.configuration.dimensions) if snap.configuration.dimensions is not None else 3
+        box = Box.from_box(list(snap.configuration.box), dimensions=dimensions)
+    return {"positions": position, "orientations": orientation, "type_semi_axes": np.array(axes),
+            "typeid": typeid, "box": box, "type_names": types, "frame": index}
+
+
+def _scene(raw: dict) -> dict:
+    lx, ly, lz, xy, xz, yz, dimensions, periodic = raw["box"]
+    box = Box(lx, ly, lz, xy, xz, yz, is2D=dimensions == 2) if periodic else None
+    return {"positions": raw["positions"], "q": raw["q"], "box": box, "typeid": raw["typeid"],
+            "type_names": raw["type_names"], "id": raw["id"], "frame": raw["frame"]}
+
+
+def read_lammps_data(path: str) -> dict:
+    """A LAMMPS data file of atom_style ellipsoid (the C++ reader: shapes are
+    diameters there, tilts lengths), as the keyword arguments of screen:
+    positions, q (forms), box, with typeid, type_names and id (atom ids)."""
+    return _scene(_core.read_lammps_data(str(path)))
+
+
+def read_lammps_dump(path: str, frame: int = -1) -> dict:
+    """Frame `frame` of a LAMMPS text dump (dump custom with positions,
+    shapex shapey shapez and quatw quati quatj quatk), as read_lammps_data."""
+    return _scene(_core.read_lammps_dump(str(path), int(frame)))
+
+
+def read_gsd_native(path: str, frame: int = -1) -> dict:
+    """The same frame through the library's own C++ GSD reader (forms q, not
+    semi-axes), as read_lammps_data: for comparing with `pwcontact screen`."""
+    return _scene(_core.read_gsd(str(path), int(frame)))
+
+
+def spheroid_scene(n: int, seed: int = 1, packing: float = 0.3, max_aspect: float = 3.0) -> dict:
+    """The demo scene: n random spheroids (aspect 1/max_aspect .. max_aspect,
+    volume of a sphere of radius 0.5) in a periodic cube at the packing
+    fraction, as the keyword arguments of screen."""
+    raw = _core.spheroid_scene(int(n), int(seed), float(packing), float(max_aspect))
+    lx, ly, lz, *_ = raw["box"]
+    return {"positions": raw["positions"], "orientations": raw["orientations"],
+            "semi_axes": raw["semi_axes"], "box": Box(lx, ly, lz)}
+
+
+class MovingScene:
+    """A scene kept between calls for trial moves (Monte Carlo): insert,
+    remove, move in O(1), and queries of a trial particle against every
+    stored one. Built from the arguments screen takes (positions and one of
+    semi_axes + orientations, type_semi_axes + typeid, q; box).
+
+    A trial particle is given by ``position`` and one of ``semi_axes`` (with
+    ``orientation``), ``q``, or ``typeid`` (with ``orientation``).
+    """
+
+    none = None
+
+    def __init__(self, positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None,
+                 typeid=None, box=None, **ignored):
+        b = _as_box(box)
+        self._box = b
+        self._scene = _core.MovingScene(np.asarray(positions, dtype=float), orientations, semi_axes, q,
+                                        type_semi_axes, typeid, None if b is None else b._core())
+
+    def __len__(self) -> int:
+        return len(self._scene)
+
+    def _trial(self, position, orientation, semi_axes, q, typeid):
+        return self._scene.trial(position, orientation, semi_axes, q, typeid)
+
+    def overlaps(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
+                 exclude: Optional[int] = None) -> Optional[int]:
+        """The index of a particle the trial overlaps (mu < 1), the first in
+        the scene's search order, or None; `exclude` is the index the trial
+        would replace."""
+        i = self._scene.overlaps(self._trial(position, orientation, semi_axes, q, typeid),
+                                 -1 if exclude is None else int(exclude))
+        return None if i < 0 else int(i)
+
+    def overlap_count(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
+                      exclude: Optional[int] = None) -> int:
+        """How many stored particles the trial overlaps."""
+        return self._scene.overlap_count(self._trial(position, orientation, semi_axes, q, typeid),
+                                         -1 if exclude is None else int(exclude))
+
+    def neighbors(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
+                  cutoff: float = 1.0, with_mu2: bool = False,
+                  exclude: Optional[int] = None) -> Tuple[np.ndarray, np.ndarray]:
+        """(indices, mu2) of every stored particle with mu < cutoff (mu2 NaN
+        unless with_mu2)."""
+        return self._scene.neighbors(self._trial(position, orientation, semi_axes, q, typeid), float(cutoff),
+                                     bool(with_mu2), -1 if exclude is None else int(exclude))
+
+    def insert(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> int:
+        """Stores a particle; returns its index (len(scene) - 1)."""
+        return self._scene.insert(self._trial(position, orientation, semi_axes, q, typeid))
+
+    def remove(self, i: int) -> int:
+        """Removes particle i; the last particle takes its index. Returns the
+        index that moved to i (or i when it was the last)."""
+        return self._scene.remove(int(i))
+
+    def move(self, i: int, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> None:
+        """Particle i's new centre and shape (IndexError for an index that does
+        not exist, ValueError for a shape the store refuses; unchanged then)."""
+        self._scene.move(int(i), self._trial(position, orientation, semi_axes, q, typeid))
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self._scene.positions()
+
+    @property
+    def q(self) -> np.ndarray:
+        return self._scene.q()

@@ -1,0 +1,208 @@
+"""contact_function, overlap and quadratic_form from numpy."""
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import pwcontact as pw
+
+# The batch path's documented accuracy on each oracle family (the same
+# tolerances as tests/reference_data_test.cpp, whose comments derive them):
+# relative on mu2, absolute on lambda.
+TOLERANCE = {"random": (1e-13, 1e-13), "pw85": (2e-11, 1e-10), "spread": (2e-9, 1e-8)}
+
+
+@pytest.mark.parametrize("family", sorted(TOLERANCE))
+@pytest.mark.parametrize("isa", pw.supported_isas())
+def test_double_answers_match_the_quad_precision_oracle(reference_pairs, family, isa):
+    r12, q1, q2, mu2, lam = reference_pairs[family]
+    r = pw.contact_function(r12, q1, q2, isa=isa)
+    assert r.mu2.dtype == np.float64
+    assert np.all(pw.is_valid(r.status))
+    mu2_tol, lambda_tol = TOLERANCE[family]
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) <= mu2_tol
+    assert np.max(np.abs(r.lambda_ - lam)) <= lambda_tol
+    assert r.pairs == len(mu2) and r.isa == isa
+
+
+def test_float32_pairs_stay_float32_and_are_accurate_to_float(reference_pairs):
+    r12, q1, q2, mu2, _ = reference_pairs["random"]
+    r = pw.contact_function(r12.astype(np.float32), q1.astype(np.float32), q2.astype(np.float32))
+    assert r.mu2.dtype == np.float32 and r.lambda_.dtype == np.float32
+    assert r.precision == "float"
+    valid = pw.is_valid(r.status)
+    assert valid.all()
+    # The pairs as rounded to float differ from the oracle's by ~1e-7
+    # relative in every number; mu2 moves by a few times that (cond(Q) <= 16).
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) < 1e-5
+    # precision="double" on float32 pairs computes in double (float64 results).
+    d = pw.contact_function(r12.astype(np.float32), q1.astype(np.float32), q2.astype(np.float32),
+                            precision="double")
+    assert d.mu2.dtype == np.float64
+
+
+def test_geometry_outputs_satisfy_the_contact_conditions():
+    rng = np.random.default_rng(5)
+    n = 500
+    axes = rng.uniform(0.5, 2, (n, 3))
+    quat = rng.normal(size=(n, 4))
+    q1 = pw.quadratic_form(axes, quat)
+    q2 = pw.quadratic_form(rng.uniform(0.5, 2, (n, 3)), rng.normal(size=(n, 4)))
+    r12 = rng.normal(size=(n, 3)) * 3
+    r = pw.contact_function(r12, q1, q2, outputs=("mu2", "lambda", "contact_point", "normal", "gradient"))
+    assert r.contact_point.shape == (n, 3) and r.normal.shape == (n, 3)
+    # The contact point lies on ellipsoid 1 scaled by mu: x^T Q1^-1 x = mu^2.
+    full = np.zeros((n, 3, 3))
+    idx = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+    for k, (a, b) in enumerate(idx):
+        full[:, a, b] = full[:, b, a] = q1[:, k]
+    x = r.contact_point
+    on_surface = np.einsum("ni,ni->n", x, np.linalg.solve(full, x[..., None])[..., 0])
+    assert np.max(np.abs(on_surface - r.mu2) / r.mu2) < 1e-9
+    assert np.max(np.abs(np.linalg.norm(r.normal, axis=1) - 1)) < 1e-12
+
+
+def test_mu2_only_and_lambda_keys():
+    r = pw.contact_function([2.0, 0, 0], pw.sphere(1), pw.sphere(0.5), outputs=("mu2",))
+    assert "lambda" not in r and "mu2" in r
+    assert r.mu2 == pytest.approx([(2 / 1.5) ** 2], rel=1e-15)
+    r = pw.contact_function([2.0, 0, 0], pw.sphere(1), pw.sphere(0.5), outputs=("lambda",))
+    assert "mu2" not in r and r["lambda"][0] == pytest.approx(1 / 1.5, rel=1e-14)
+
+
+def test_shape_and_option_errors_are_value_errors():
+    q = pw.sphere(1)
+    with pytest.raises(ValueError, match=r"r12 must have shape \(N, 3\)"):
+        pw.contact_function(np.zeros((4, 4)), q, q)
+    with pytest.raises(ValueError, match="q1 must have shape"):
+        pw.contact_function(np.ones((4, 3)), np.ones((4, 5)), q)
+    with pytest.raises(ValueError, match="different lengths"):
+        pw.contact_function(np.ones((4, 3)), np.tile(q, (3, 1)), q)
+    with pytest.raises(ValueError, match="unknown output"):
+        pw.contact_function(np.ones((4, 3)), q, q, outputs=("mu3",))
+    with pytest.raises(ValueError, match="precision"):
+        pw.contact_function(np.ones((4, 3)), q, q, precision="quad")
+    with pytest.raises(ValueError, match="iterations"):
+        pw.contact_function(np.ones((4, 3)), q, q, iterations=0)
+    with pytest.raises(ValueError, match="threads"):
+        pw.contact_function(np.ones((4, 3)), q, q, threads=-1)
+    with pytest.raises(ValueError, match="cutoff"):
+        pw.overlap(np.ones((4, 3)), q, q, cutoff=0)
+    with pytest.raises(ValueError):
+        pw.contact_function(np.array([["a", "b", "c"]]), q, q)
+
+
+def test_broadcast_and_non_contiguous_inputs_give_the_same_bits(reference_pairs):
+    r12, q1, q2, _, _ = reference_pairs["pw85"]
+    base = pw.contact_function(r12, q1, q2)
+    # Fortran order, a strided view, and a one-row broadcast against its tiling.
+    f = pw.contact_function(np.asfortranarray(r12), np.asfortranarray(q1), q2)
+    assert np.array_equal(f.mu2, base.mu2) and np.array_equal(f.lambda_, base.lambda_)
+    wide = np.zeros((len(r12), 6))
+    wide[:, ::2] = r12[:, [0, 0, 1]]
+    wide[:, 1::2] = r12[:, [1, 2, 2]]
+    strided = wide[:, [0, 1, 3]]  # a copy by fancy indexing: build a real strided view instead
+    view = np.lib.stride_tricks.as_strided(wide, shape=(len(r12), 3), strides=(wide.strides[0], 16))
+    view_values = np.stack([wide[:, 0], wide[:, 2], wide[:, 4]], axis=1)
+    s = pw.contact_function(view, q1, q2)
+    e = pw.contact_function(view_values, q1, q2)
+    assert np.array_equal(s.mu2, e.mu2)
+    one = pw.contact_function(r12, q1[7], q2)
+    tiled = pw.contact_function(r12, np.tile(q1[7], (len(r12), 1)), q2)
+    assert np.array_equal(one.mu2, tiled.mu2)
+    del strided
+
+
+def test_integer_input_is_converted():
+    r = pw.contact_function(np.array([[3, 0, 0]]), np.array([1, 0, 0, 1, 0, 1]), np.array([1, 0, 0, 1, 0, 1]))
+    assert r.mu2[0] == pytest.approx(2.25, rel=1e-15)
+
+
+def test_bad_pairs_among_good_ones_are_statuses_not_exceptions(reference_pairs):
+    r12, q1, q2, mu2, _ = reference_pairs["random"]
+    r12, q1, q2 = r12.copy(), q1.copy(), q2.copy()
+    r12[10, 1] = np.nan
+    q1[20] = [1, 0, 0, -1, 0, 1]  # indefinite
+    q2[30] = [1, 0, 0, 1, 0, 0]  # singular
+    r = pw.contact_function(r12, q1, q2)
+    assert r.status[10] == pw.Status.non_finite_input
+    assert r.status[20] == pw.Status.q1_not_positive_definite
+    assert r.status[30] == pw.Status.q2_not_positive_definite
+    assert np.isnan(r.mu2[[10, 20, 30]]).all()
+    assert r.invalid == 3
+    good = np.ones(len(mu2), bool)
+    good[[10, 20, 30]] = False
+    assert pw.is_valid(r.status[good]).all()
+    assert np.max(np.abs(r.mu2[good] - mu2[good]) / mu2[good]) <= 1e-13
+    o = pw.overlap(r12, q1, q2)
+    assert o.status[10] == pw.Status.non_finite_input and not o.overlap[10]
+
+
+def test_results_do_not_depend_on_the_thread_count(reference_pairs):
+    r12, q1, q2, _, _ = reference_pairs["pw85"]
+    big = [np.tile(a, (20, 1)) for a in (r12, q1, q2)]
+    one = pw.contact_function(*big, threads=1)
+    two = pw.contact_function(*big, threads=2)
+    assert np.array_equal(one.mu2, two.mu2) and np.array_equal(one.lambda_, two.lambda_)
+    assert np.array_equal(pw.overlap(*big, threads=1).overlap, pw.overlap(*big, threads=2).overlap)
+
+
+def test_overlap_agrees_with_mu2_away_from_tangency(reference_pairs):
+    for family in ("random", "pw85", "spread"):
+        r12, q1, q2, mu2, _ = reference_pairs[family]
+        for cutoff in (0.5, 1.0, 2.0):
+            o = pw.overlap(r12, q1, q2, cutoff)
+            # The documented bound: exact beyond 1e-9 of tangency (cond(Q) up to 1e8).
+            clear = np.abs(mu2 - cutoff**2) > 1e-9 * cutoff**2
+            assert np.array_equal(o.overlap[clear], (mu2 < cutoff**2)[clear])
+            assert o.overlap.dtype == np.bool_
+
+
+def test_quadratic_form_matches_the_rotation_it_names():
+    rng = np.random.default_rng(2)
+    axes = rng.uniform(0.3, 3, (50, 3))
+    quat = rng.normal(size=(50, 4))
+    q = pw.quadratic_form(axes, quat)
+    u = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    w, x, y, z = u.T
+    rot = np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
+    m = rot @ (axes[:, :, None] ** 2 * np.transpose(rot, (0, 2, 1)))
+    expected = m[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    assert np.max(np.abs(q - expected)) < 1e-12 * np.max(axes) ** 2
+    with pytest.raises(ValueError):
+        pw.quadratic_form([1, 1, 1], [0, 0, 0, 0])
+    with pytest.raises(ValueError, match="semi_axes of particle 0"):
+        pw.quadratic_form([1, -1, 1], [1, 0, 0, 0])
+    assert np.allclose(pw.spheroid(1, 2, (0, 0, 1)), [1, 0, 0, 1, 0, 4])
+
+
+def test_the_gil_is_released_during_a_long_call():
+    rng = np.random.default_rng(3)
+    n = 2_000_000
+    r12 = rng.normal(size=(n, 3)) * 3
+    q = pw.quadratic_form(rng.uniform(0.5, 2, (n, 3)), rng.normal(size=(n, 4)))
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    time.sleep(0.01)
+    start = time.perf_counter()
+    pw.contact_function(r12, q, q[::-1], threads=1)
+    end = time.perf_counter()
+    done.set()
+    t.join()
+    during = [x for x in ticks if start < x < end]
+    # A held GIL would leave the counting thread no tick inside the call
+    # (it lasts ~0.1 s; the thread ticks every ~1 ms when it can run).
+    assert end - start > 0.02
+    assert len(during) >= 3

@@ -1,0 +1,167 @@
+"""screen, Box, the scene readers, and agreement with the command line."""
+import subprocess
+
+import numpy as np
+import pytest
+
+import pwcontact as pw
+
+gsd_hoomd = pytest.importorskip("gsd.hoomd")
+
+
+def brute_force_pairs(positions, q, box, cutoff):
+    """Every pair with mu < cutoff by contact_function over all pairs (the
+    minimum image is the only image: the scenes below keep cutoff reaches
+    under half the box)."""
+    n = len(positions)
+    i, j = np.triu_indices(n, 1)
+    d = positions[j] - positions[i]
+    if box is not None:
+        d = box.wrap_vectors(d)
+    r = pw.contact_function(d, q[i], q[j], outputs=("mu2",))
+    assert pw.is_valid(r.status).all()
+    keep = r.mu2 < cutoff * cutoff
+    return np.stack([i[keep], j[keep]], axis=1).astype(np.uint32), r.mu2[keep]
+
+
+def random_scene(n, seed, box_length, aspect=3.0):
+    rng = np.random.default_rng(seed)
+    positions = rng.uniform(-box_length / 2, box_length / 2, (n, 3))
+    c = np.exp(rng.uniform(-np.log(aspect), np.log(aspect), n))
+    a = c ** -0.5
+    axes = np.stack([a, a, c], axis=1) * 0.5
+    orientations = rng.normal(size=(n, 4))
+    orientations /= np.linalg.norm(orientations, axis=1, keepdims=True)
+    return positions, orientations, axes
+
+
+@pytest.mark.parametrize("tilts", [(0, 0, 0), (0.3, -0.2, 0.1)])
+@pytest.mark.parametrize("cutoff", [1.0, 1.4])
+def test_screen_finds_exactly_the_brute_force_pairs(tilts, cutoff):
+    positions, orientations, axes = random_scene(900, 3, 12.0)
+    box = pw.Box(12, 12, 12, *tilts)
+    res = pw.screen(positions, orientations, axes, box=box, cutoff=cutoff, with_mu2=True)
+    q = pw.quadratic_form(axes, orientations)
+    pairs, mu2 = brute_force_pairs(positions, q, box, cutoff)
+    assert res.pairs.dtype == np.uint32 and res.pairs.shape[1] == 2
+    assert np.array_equal(res.pairs, pairs)
+    assert np.allclose(res.mu2, mu2, rtol=1e-12)
+    # counts and offsets agree with the pairs.
+    assert np.array_equal(res.counts, np.bincount(res.pairs.ravel(), minlength=900))
+    for i in (0, 17, 899):
+        block = res.pairs[res.offsets[i]:res.offsets[i + 1]]
+        assert (block[:, 0] == i).all()
+        assert len(block) == np.count_nonzero(res.pairs[:, 0] == i)
+
+
+def test_open_box_and_every_shape_input_give_the_same_pairs():
+    positions, orientations, axes = random_scene(300, 4, 6.0)
+    q = pw.quadratic_form(axes, orientations)
+    by_axes = pw.screen(positions, orientations, axes, cutoff=1.2)
+    by_q = pw.screen(positions, q=q, cutoff=1.2)
+    types = np.unique(axes, axis=0, return_inverse=True)
+    by_type = pw.screen(positions, orientations, type_semi_axes=types[0], typeid=types[1], cutoff=1.2)
+    pairs, _ = brute_force_pairs(positions, q, None, 1.2)
+    for res in (by_axes, by_q, by_type):
+        assert np.array_equal(res.pairs, pairs)
+    assert pw.screen(positions[:1], orientations[:1], axes[:1]).pairs.shape == (0, 2)
+
+
+def test_screen_input_errors():
+    positions, orientations, axes = random_scene(10, 5, 6.0)
+    with pytest.raises(ValueError, match="one way"):
+        pw.screen(positions, orientations, axes, q=pw.quadratic_form(axes, orientations))
+    with pytest.raises(ValueError, match="positions"):
+        pw.screen(positions[:, :2], orientations, axes)
+    with pytest.raises(ValueError, match="semi_axes has 9 rows"):
+        pw.screen(positions, orientations, axes[:9])
+    bad = axes.copy()
+    bad[4, 1] = -1
+    with pytest.raises(ValueError, match="4"):
+        pw.screen(positions, orientations, bad)
+    with pytest.raises(ValueError, match="box lengths"):
+        pw.Box(1, -1, 1)
+    with pytest.raises(TypeError):
+        pw.screen(positions, orientations, axes, cutof=1.0)
+
+
+def test_box_from_the_conventions_users_hold():
+    assert pw.Box.from_box([2, 3, 4, 0.1, 0.2, 0.3]).matrix[0, 1] == pytest.approx(0.3)
+    assert pw.Box.from_box({"Lx": 2, "Ly": 3, "Lz": 4, "xy": 0.5}).xy == 0.5
+    assert pw.Box.from_box([2, 3]).is2D and pw.Box.from_box([2, 3, 0, 0, 0, 0]).is2D
+
+    class FreudLike:  # freud.box.Box and hoomd.Box expose these attributes
+        Lx, Ly, Lz, xy, xz, yz, is2D = 5.0, 6.0, 7.0, 0.1, 0.0, -0.1, False
+
+    b = pw.Box.from_box(FreudLike())
+    assert (b.Lx, b.yz, b.is2D) == (5.0, -0.1, False)
+    d = b.wrap_vectors([[4.9, 0, 0]])
+    assert d[0, 0] == pytest.approx(-0.1)
+
+
+def write_gsd(path, positions, orientations, axes_by_type, typeid, box):
+    frame = gsd_hoomd.Frame() if hasattr(gsd_hoomd, "Frame") else gsd_hoomd.Snapshot()
+    frame.particles.N = len(positions)
+    frame.particles.position = positions.astype(np.float32)
+    frame.particles.orientation = orientations.astype(np.float32)
+    frame.particles.types = [f"T{k}" for k in range(len(axes_by_type))]
+    frame.particles.typeid = typeid.astype(np.uint32)
+    frame.particles.type_shapes = [{"type": "Ellipsoid", "a": float(a), "b": float(b), "c": float(c)}
+                                   for a, b, c in axes_by_type]
+    frame.configuration.box = box
+    with gsd_hoomd.open(str(path), "wb") as f:
+        f.append(frame)
+
+
+def test_a_gsd_file_screens_to_the_pairs_of_the_command_line(tmp_path, cli):
+    rng = np.random.default_rng(8)
+    n = 2000
+    box = [14.0, 14.0, 14.0, 0.2, 0.0, -0.1]
+    positions = rng.uniform(-7, 7, (n, 3))
+    orientations = rng.normal(size=(n, 4))
+    orientations /= np.linalg.norm(orientations, axis=1, keepdims=True)
+    axes = np.array([[0.5, 0.5, 1.2], [0.8, 0.4, 0.4], [0.6, 0.6, 0.6]])
+    typeid = rng.integers(0, 3, n)
+    path = tmp_path / "scene.gsd"
+    write_gsd(path, positions, orientations, axes, typeid, box)
+    scene = pw.read_gsd(str(path))
+    assert scene["positions"].shape == (n, 3) and scene["type_names"] == ["T0", "T1", "T2"]
+    res = pw.screen(**scene, cutoff=1.3, with_mu2=True)
+    out = subprocess.run([cli, "screen", "--cutoff", "1.3", "--with-mu2", str(path)], check=True,
+                         capture_output=True, text=True).stdout
+    rows = [line.split() for line in out.splitlines() if line and not line.startswith("#")]
+    cli_pairs = np.array([[int(r[0]), int(r[1])] for r in rows], dtype=np.uint32).reshape(-1, 2)
+    cli_mu2 = np.array([float(r[2]) for r in rows])
+    assert len(res) > 100
+    assert np.array_equal(res.pairs, cli_pairs)
+    # The command line prints 17 significant digits: the same doubles.
+    assert np.array_equal(res.mu2, cli_mu2)
+    # The library's own GSD reader, through the module, agrees too.
+    native = pw.read_gsd_native(str(path))
+    assert np.array_equal(pw.screen(**native, cutoff=1.3).pairs, cli_pairs)
+    arrays = res.to_freud_arrays()
+    assert len(arrays["query_point_indices"]) == 2 * len(res)
+    assert np.all(np.diff(arrays["query_point_indices"].astype(np.int64)) >= 0)
+
+
+def test_read_gsd_names_what_is_wrong(tmp_path):
+    path = tmp_path / "spheres.gsd"
+    frame = gsd_hoomd.Frame() if hasattr(gsd_hoomd, "Frame") else gsd_hoomd.Snapshot()
+    frame.particles.N = 2
+    frame.particles.position = np.array([[0, 0, 0], [1.5, 0, 0]], dtype=np.float32)
+    frame.particles.types = ["A"]
+    frame.particles.type_shapes = [{"type": "Polyhedron"}]
+    frame.configuration.box = [10, 10, 10, 0, 0, 0]
+    with gsd_hoomd.open(str(path), "wb") as f:
+        f.append(frame)
+    with pytest.raises(ValueError, match="type 'A' has no Ellipsoid or Sphere shape"):
+        pw.read_gsd(str(path))
+    with pytest.raises(ValueError, match="frame 3"):
+        pw.read_gsd(str(path), frame=3)
+
+
+def test_threads_do_not_change_the_pairs():
+    scene = pw.spheroid_scene(20000, 2, 0.4)
+    one = pw.screen(**scene, cutoff=1.2, with_mu2=True, threads=1)
+    two = pw.screen(**scene, cutoff=1.2, with_mu2=True, threads=2)
+    assert np.array_equal(one.pairs, two.pairs) and np.array_equal(one.mu2, two.mu2)

@@ -1,0 +1,749 @@
+// The Python module pwcontact._pwcontact (pybind11): numpy arrays in, numpy
+// arrays out, the GIL released during every computation. The package
+// (python/pwcontact/__init__.py) wraps it with the Box convention, GSD
+// reading through python3-gsd and the docstrings users see.
+//
+// Arrays are taken as they are, whatever their strides (a row of r12 may be
+// 0 apart: one pair's numbers broadcast against many), and converted only
+// when their dtype is not the one computed in (numpy makes that copy). The
+// batch calls read structure-of-arrays pairs, so the pairs are gathered a
+// chunk at a time (in cache) over the threads and solved there: the answers
+// do not depend on a pair's position in a batch nor on the thread count, so
+// chunking changes none of them.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "parallel_errors.hpp"
+#include "pwcontact/pwcontact.hpp"
+
+namespace py = pybind11;
+using pwcontact::Status;
+
+namespace {
+
+// A 2-D view (rows of k numbers) of an array of shape (N, k) or (k,), by
+// element strides; rows == 1 and row_stride == 0 for (k,).
+template <class T>
+struct Rows {
+  py::array_t<T> keep;  // holds the data (a converted copy, or the caller's array)
+  const T* data = nullptr;
+  std::size_t rows = 0;
+  std::ptrdiff_t row_stride = 0, column_stride = 1;
+  bool broadcast = false;
+  T at(std::size_t i, int k) const {
+    return data[std::ptrdiff_t(broadcast ? 0 : i) * row_stride + k * column_stride];
+  }
+};
+
+std::string shape_text(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) s += (d ? ", " : "") + std::to_string(a.shape(d));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+template <class T>
+Rows<T> rows_of(const py::handle& object, int k, const char* name) {
+  auto a = py::array_t<T, py::array::forcecast>::ensure(object);
+  if (!a) throw py::value_error(std::string(name) + " must be an array of numbers");
+  Rows<T> r;
+  if (a.ndim() == 1 && a.shape(0) == k) {
+    r.rows = 1;
+    r.broadcast = true;
+    r.column_stride = a.strides(0) / py::ssize_t(sizeof(T));
+  } else if (a.ndim() == 2 && a.shape(1) == k) {
+    r.rows = std::size_t(a.shape(0));
+    r.row_stride = a.strides(0) / py::ssize_t(sizeof(T));
+    r.column_stride = a.strides(1) / py::ssize_t(sizeof(T));
+  } else {
+    throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(k) + ") or (" +
+                          std::to_string(k) + ",), got " + shape_text(a));
+  }
+  r.data = a.data();
+  r.keep = std::move(a);
+  return r;
+}
+
+// The common N of arrays of N rows or broadcast ones (N = 1 when all are).
+std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arrays,
+                        std::initializer_list<const char*> names) {
+  std::size_t n = 1;
+  bool any = false;
+  for (const auto& [rows, broadcast] : arrays)
+    if (!broadcast) {
+      if (any && rows != n) {
+        std::string text = "arrays of different lengths:";
+        auto name = names.begin();
+        for (const auto& [r, b] : arrays) text += std::string(" ") + *name++ + (b ? " (broadcast)" : " " + std::to_string(r));
+        throw py::value_error(text);
+      }
+      n = rows;
+      any = true;
+    }
+  return n;
+}
+
+int thread_count(int threads) {
+  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all), got " + std::to_string(threads));
+  return threads > 0 ? threads : omp_get_max_threads();
+}
+
+pwcontact::BatchOptions batch_options(const std::string& precision, const py::object& iterations,
+                                      const std::string& accuracy, const std::string& isa) {
+  pwcontact::BatchOptions o;
+  const auto p = pwcontact::parse_precision(precision);
+  if (!p) throw py::value_error("precision must be one of auto, double, float, mixed; got '" + precision + "'");
+  o.precision = *p;
+  const auto a = pwcontact::parse_accuracy(accuracy);
+  if (!a) throw py::value_error("accuracy must be standard or high; got '" + accuracy + "'");
+  o.accuracy = *a;
+  const auto i = pwcontact::parse_isa(isa);
+  if (!i) throw py::value_error("isa must be one of auto, sse2, avx2, avx512; got '" + isa + "'");
+  o.isa = *i;
+  if (iterations.is_none() || (py::isinstance<py::str>(iterations) && iterations.cast<std::string>() == "auto")) {
+    o.iterations = pwcontact::automatic_iterations;
+  } else {
+    const long n = iterations.cast<long>();
+    if (n < 1 || n > pwcontact::max_automatic_iterations)
+      throw py::value_error("iterations must be 'auto' or 1 .. " +
+                            std::to_string(pwcontact::max_automatic_iterations) + ", got " + std::to_string(n));
+    o.iterations = int(n);
+  }
+  return o;
+}
+
+constexpr std::size_t chunk_pairs = 4096;
+
+struct Outputs {
+  bool mu2 = true, lambda = false, contact_point = false, normal = false, gradient = false;
+};
+
+Outputs parse_outputs(const std::vector<std::string>& names) {
+  Outputs o;
+  o.mu2 = false;
+  for (const std::string& n : names) {
+    if (n == "mu2") o.mu2 = true;
+    else if (n == "lambda") o.lambda = true;
+    else if (n == "contact_point") o.contact_point = true;
+    else if (n == "normal") o.normal = true;
+    else if (n == "gradient") o.gradient = true;
+    else
+      throw py::value_error("unknown output '" + n +
+                            "' (outputs: mu2, lambda, contact_point, normal, gradient)");
+  }
+  return o;
+}
+
+// Totals of a report over the chunks.
+struct Totals {
+  std::size_t pairs = 0, fallbacks = 0, invalid = 0, decided_by_prefilter = 0,
+              decided_by_certificate = 0, overlapping = 0;
+  double evaluations = 0;
+  std::string isa, precision;
+  void add(const pwcontact::BatchReport& r) {
+    pairs += r.pairs;
+    fallbacks += r.fallbacks;
+    invalid += r.invalid;
+    decided_by_prefilter += r.decided_by_prefilter;
+    decided_by_certificate += r.decided_by_certificate;
+    overlapping += r.overlapping;
+    evaluations += r.mean_evaluations * double(r.pairs);
+  }
+  void merge(const Totals& t) {
+    pairs += t.pairs;
+    fallbacks += t.fallbacks;
+    invalid += t.invalid;
+    decided_by_prefilter += t.decided_by_prefilter;
+    decided_by_certificate += t.decided_by_certificate;
+    overlapping += t.overlapping;
+    evaluations += t.evaluations;
+    if (isa.empty()) isa = t.isa, precision = t.precision;
+  }
+};
+
+// Gathers pairs [begin, end) into `batch` (resized to end - begin).
+template <class T>
+void gather(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t begin,
+            std::size_t end, pwcontact::PairBatch<T>& batch) {
+  const std::size_t m = end - begin;
+  batch.resize(m);
+  for (int k = 0; k < 3; ++k) {
+    T* out = batch.r12(k).data();
+    for (std::size_t p = 0; p < m; ++p) out[p] = r12.at(begin + p, k);
+  }
+  for (int k = 0; k < 6; ++k) {
+    T* a = batch.q1(k).data();
+    T* b = batch.q2(k).data();
+    for (std::size_t p = 0; p < m; ++p) {
+      a[p] = q1.at(begin + p, k);
+      b[p] = q2.at(begin + p, k);
+    }
+  }
+}
+
+// Over chunks of pairs, in parallel, with the GIL released: body(thread's
+// batch, begin, end, totals).
+template <class T, class Body>
+Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t n,
+                   int threads, Body&& body) {
+  Totals all;
+  pwcontact::detail::ParallelErrors errors;
+  {
+    py::gil_scoped_release release;
+    const std::size_t chunks = (n + chunk_pairs - 1) / chunk_pairs;
+#pragma omp parallel num_threads(threads)
+    {
+      pwcontact::PairBatch<T> batch;
+      Totals mine;
+#pragma omp for schedule(dynamic, 1)
+      for (std::size_t c = 0; c < chunks; ++c)
+        errors.run([&] {
+          const std::size_t begin = c * chunk_pairs, end = std::min(n, begin + chunk_pairs);
+          gather(r12, q1, q2, begin, end, batch);
+          body(batch, begin, end, mine);
+        });
+#pragma omp critical(pwcontact_python_totals)
+      all.merge(mine);
+    }
+  }
+  errors.rethrow_if_failed();
+  return all;
+}
+
+py::dict report_dict(const Totals& t) {
+  py::dict d;
+  d["pairs"] = t.pairs;
+  d["fallbacks"] = t.fallbacks;
+  d["invalid"] = t.invalid;
+  d["mean_evaluations"] = t.pairs ? t.evaluations / double(t.pairs) : 0.0;
+  d["isa"] = t.isa;
+  d["precision"] = t.precision;
+  return d;
+}
+
+// One column-major (3, n) block returned as its (n, 3) transpose (no copy).
+template <class T>
+py::array_t<T> vectors(std::size_t n) {
+  return py::array_t<T>({py::ssize_t(3), py::ssize_t(n)});
+}
+
+template <class T>
+py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_in,
+                                const py::handle& q2_in, const Outputs& wanted,
+                                pwcontact::BatchOptions options, int threads,
+                                const py::object& lambda_start_in) {
+  const Rows<T> r12 = rows_of<T>(r12_in, 3, "r12"), q1 = rows_of<T>(q1_in, 6, "q1"),
+                q2 = rows_of<T>(q2_in, 6, "q2");
+  const std::size_t n = common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
+                                    {"r12", "q1", "q2"});
+  py::array_t<T> lambda_start;  // (a default array_t is an empty array, not a null one)
+  const bool warm = !lambda_start_in.is_none();
+  if (warm) {
+    lambda_start = py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(lambda_start_in);
+    if (!lambda_start || lambda_start.ndim() != 1 || std::size_t(lambda_start.shape(0)) != n)
+      throw py::value_error("lambda_start must have shape (" + std::to_string(n) + ",)");
+  }
+  py::array_t<T> mu2{py::ssize_t(n)}, lambda;
+  py::array_t<std::uint8_t> status{py::ssize_t(n)};
+  py::array_t<T> point, normal, gradient;
+  // mu2 is always computed (the kernels' answer); lambda and the vectors
+  // only when asked for.
+  if (wanted.lambda) lambda = py::array_t<T>(py::ssize_t(n));
+  if (wanted.contact_point) point = vectors<T>(n);
+  if (wanted.normal) normal = vectors<T>(n);
+  if (wanted.gradient) gradient = vectors<T>(n);
+  T* mu2_data = mu2.mutable_data();
+  T* lambda_data = wanted.lambda ? lambda.mutable_data() : nullptr;
+  auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
+  T* point_data = wanted.contact_point ? point.mutable_data() : nullptr;
+  T* normal_data = wanted.normal ? normal.mutable_data() : nullptr;
+  T* gradient_data = wanted.gradient ? gradient.mutable_data() : nullptr;
+  const T* start_data = warm ? lambda_start.data() : nullptr;
+  options.threads = 1;
+  const int used = thread_count(threads);
+  Totals totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatch<T>& batch, std::size_t begin,
+                                                        std::size_t end, Totals& mine) {
+    pwcontact::PairBatchView<T> view = batch.view();
+    if (start_data) view.lambda_start = start_data + begin;
+    pwcontact::ContactOutputs<T> out;
+    out.mu2 = mu2_data + begin;
+    out.lambda = lambda_data ? lambda_data + begin : nullptr;
+    out.status = status_data + begin;
+    for (int k = 0; k < 3; ++k) {
+      if (point_data) out.contact_point[k] = point_data + k * n + begin;
+      if (normal_data) out.normal[k] = normal_data + k * n + begin;
+      if (gradient_data) out.gradient[k] = gradient_data + k * n + begin;
+    }
+    const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, options);
+    mine.add(r);
+    if (mine.isa.empty()) {
+      mine.isa = pwcontact::isa_name(r.isa);
+      mine.precision = pwcontact::precision_name(r.precision);
+    }
+    (void)end;
+  });
+  py::dict result;
+  if (wanted.mu2) result["mu2"] = mu2;
+  if (wanted.lambda) result["lambda"] = lambda;
+  result["status"] = status;
+  if (wanted.contact_point) result["contact_point"] = point.attr("T");
+  if (wanted.normal) result["normal"] = normal.attr("T");
+  if (wanted.gradient) result["gradient"] = gradient.attr("T");
+  result["report"] = report_dict(totals);
+  return result;
+}
+
+bool is_float32(const py::handle& object) {
+  return py::isinstance<py::array>(object) &&
+         py::reinterpret_borrow<py::array>(object).dtype().is(py::dtype::of<float>());
+}
+
+py::dict contact_function(const py::object& r12, const py::object& q1, const py::object& q2,
+                          const std::vector<std::string>& outputs, const std::string& precision,
+                          const py::object& iterations, const std::string& accuracy, int threads,
+                          const std::string& isa, const py::object& lambda_start) {
+  const Outputs wanted = parse_outputs(outputs);
+  const pwcontact::BatchOptions options = batch_options(precision, iterations, accuracy, isa);
+  // float32 pairs are solved as float pairs (float results) unless a
+  // precision other than float is asked for; anything else in double.
+  const bool single = is_float32(r12) && is_float32(q1) && is_float32(q2) &&
+                      (options.precision == pwcontact::Precision::automatic ||
+                       options.precision == pwcontact::Precision::single_precision);
+  if (single) return contact_function_typed<float>(r12, q1, q2, wanted, options, threads, lambda_start);
+  return contact_function_typed<double>(r12, q1, q2, wanted, options, threads, lambda_start);
+}
+
+template <class T>
+py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const py::handle& q2_in,
+                       double cutoff, pwcontact::BatchOptions options, int threads) {
+  const Rows<T> r12 = rows_of<T>(r12_in, 3, "r12"), q1 = rows_of<T>(q1_in, 6, "q1"),
+                q2 = rows_of<T>(q2_in, 6, "q2");
+  const std::size_t n = common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
+                                    {"r12", "q1", "q2"});
+  py::array_t<bool> overlap{py::ssize_t(n)};
+  py::array_t<std::uint8_t> status{py::ssize_t(n)};
+  auto* overlap_data = reinterpret_cast<std::uint8_t*>(overlap.mutable_data());
+  auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
+  options.threads = 1;
+  Totals totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatch<T>& batch,
+                                                                        std::size_t begin, std::size_t,
+                                                                        Totals& mine) {
+    const pwcontact::BatchReport r = pwcontact::overlap_batch(
+        batch.view(), {overlap_data + begin, status_data + begin}, options, cutoff);
+    mine.add(r);
+    if (mine.isa.empty()) {
+      mine.isa = pwcontact::isa_name(r.isa);
+      mine.precision = pwcontact::precision_name(r.precision);
+    }
+  });
+  py::dict result;
+  result["overlap"] = overlap;
+  result["status"] = status;
+  py::dict report = report_dict(totals);
+  report["decided_by_prefilter"] = totals.decided_by_prefilter;
+  report["decided_by_certificate"] = totals.decided_by_certificate;
+  report["overlapping"] = totals.overlapping;
+  result["report"] = report;
+  return result;
+}
+
+py::dict overlap(const py::object& r12, const py::object& q1, const py::object& q2, double cutoff,
+                 const std::string& precision, const py::object& iterations, int threads,
+                 const std::string& isa) {
+  if (!(cutoff > 0) || !std::isfinite(cutoff))
+    throw py::value_error("cutoff must be positive and finite, got " + std::to_string(cutoff));
+  const pwcontact::BatchOptions options = batch_options(precision, iterations, "standard", isa);
+  const bool single = is_float32(r12) && is_float32(q1) && is_float32(q2) &&
+                      (options.precision == pwcontact::Precision::automatic ||
+                       options.precision == pwcontact::Precision::single_precision);
+  if (single) return overlap_typed<float>(r12, q1, q2, cutoff, options, threads);
+  return overlap_typed<double>(r12, q1, q2, cutoff, options, threads);
+}
+
+// Q from semi-axes (N, 3) and quaternions (N, 4) (w, x, y, z), either broadcast.
+py::array_t<double> quadratic_form(const py::object& semi_axes_in, const py::object& orientation_in) {
+  const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
+  const Rows<double> q = rows_of<double>(orientation_in, 4, "orientation");
+  const std::size_t n = common_rows({{axes.rows, axes.broadcast}, {q.rows, q.broadcast}},
+                                    {"semi_axes", "orientation"});
+  py::array_t<double> out({py::ssize_t(n), py::ssize_t(6)});
+  double* data = out.mutable_data();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::array<double, 3> a = {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)};
+    for (int k = 0; k < 3; ++k)
+      if (!(a[k] > 0) || !std::isfinite(a[k]))
+        throw py::value_error("semi_axes of particle " + std::to_string(i) +
+                              " must be positive and finite, got " + std::to_string(a[k]));
+    const pwcontact::QuadraticForm f = pwcontact::quadratic_form_from_quaternion(
+        a, {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3)});
+    std::copy(f.begin(), f.end(), data + 6 * i);
+  }
+  return out;
+}
+
+pwcontact::Box make_box(const py::object& box) {
+  if (box.is_none()) return pwcontact::Box::open();
+  const auto v = box.cast<std::vector<double>>();
+  if (v.size() != 7)
+    throw py::value_error("internal: a box is (Lx, Ly, Lz, xy, xz, yz, dimensions)");
+  if (v[6] == 2) return pwcontact::Box::two_dimensional_box(v[0], v[1], v[3]);
+  return pwcontact::Box::triclinic(v[0], v[1], v[2], v[3], v[4], v[5]);
+}
+
+// A store from numpy arrays: forms q (N, 6); or semi-axes (N, 3 | 3,) and
+// orientations (N, 4 | 4,); or per-type semi-axes (T, 3) and type_id (N,).
+pwcontact::ParticleStore make_store(const py::object& positions_in, const py::object& orientations_in,
+                                    const py::object& semi_axes_in, const py::object& q_in,
+                                    const py::object& type_semi_axes_in, const py::object& typeid_in,
+                                    int threads) {
+  const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
+  if (positions.broadcast) throw py::value_error("positions must have shape (N, 3)");
+  const std::size_t n = positions.rows;
+  pwcontact::ParticleStore store;
+  const double identity[4] = {1, 0, 0, 0};
+  Rows<double> orientations;
+  if (!orientations_in.is_none()) {
+    orientations = rows_of<double>(orientations_in, 4, "orientations");
+    if (!orientations.broadcast && orientations.rows != n)
+      throw py::value_error("orientations has " + std::to_string(orientations.rows) + " rows, positions " +
+                            std::to_string(n));
+  } else {
+    orientations.data = identity;
+    orientations.rows = 1;
+    orientations.broadcast = true;
+  }
+  const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none()) + int(!type_semi_axes_in.is_none());
+  if (given != 1)
+    throw py::value_error("give the shapes one way: semi_axes, q, or type_semi_axes with type_id");
+  pwcontact::detail::ParallelErrors errors;
+  if (!q_in.is_none()) {
+    const Rows<double> q = rows_of<double>(q_in, 6, "q");
+    if (!q.broadcast && q.rows != n)
+      throw py::value_error("q has " + std::to_string(q.rows) + " rows, positions " + std::to_string(n));
+    py::gil_scoped_release release;
+    store.resize(n);
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::size_t i = 0; i < n; ++i)
+      errors.run([&] {
+        store.set(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)},
+                  {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3), q.at(i, 4), q.at(i, 5)});
+      });
+  } else if (!semi_axes_in.is_none()) {
+    const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
+    if (!axes.broadcast && axes.rows != n)
+      throw py::value_error("semi_axes has " + std::to_string(axes.rows) + " rows, positions " + std::to_string(n));
+    if (axes.broadcast) {
+      // One shape for all: a type, so that the scene is searched as identical shapes.
+      const std::uint32_t type = store.add_type({axes.at(0, 0), axes.at(0, 1), axes.at(0, 2)});
+      py::gil_scoped_release release;
+      store.resize(n);
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (std::size_t i = 0; i < n; ++i)
+        errors.run([&] {
+          store.set_typed(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)}, type,
+                          {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
+                           orientations.at(i, 3)});
+        });
+    } else {
+      py::gil_scoped_release release;
+      store.resize(n);
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (std::size_t i = 0; i < n; ++i)
+        errors.run([&] {
+          store.set_axes(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)},
+                         {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)},
+                         {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
+                          orientations.at(i, 3)});
+        });
+    }
+  } else {
+    if (typeid_in.is_none()) throw py::value_error("type_semi_axes needs type_id");
+    const Rows<double> types = rows_of<double>(type_semi_axes_in, 3, "type_semi_axes");
+    for (std::size_t t = 0; t < types.rows; ++t) store.add_type({types.at(t, 0), types.at(t, 1), types.at(t, 2)});
+    auto typeid_array = py::array_t<std::uint32_t, py::array::forcecast>::ensure(typeid_in);
+    if (!typeid_array || typeid_array.ndim() != 1 || std::size_t(typeid_array.shape(0)) != n)
+      throw py::value_error("type_id must have shape (" + std::to_string(n) + ",)");
+    const auto typeid_view = typeid_array.unchecked<1>();
+    py::gil_scoped_release release;
+    store.resize(n);
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::size_t i = 0; i < n; ++i)
+      errors.run([&] {
+        store.set_typed(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)}, typeid_view(i),
+                        {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
+                         orientations.at(i, 3)});
+      });
+  }
+  errors.rethrow_if_failed();
+  return store;
+}
+
+py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool with_mu2,
+                  const pwcontact::ScreenReport& report) {
+  const std::size_t m = pairs.size();
+  py::array_t<std::uint32_t> out({py::ssize_t(m), py::ssize_t(2)});
+  py::array_t<std::uint32_t> counts{py::ssize_t(n)};
+  py::array_t<std::int64_t> offsets{py::ssize_t(n + 1)};
+  {
+    auto p = out.mutable_unchecked<2>();
+    auto c = counts.mutable_unchecked<1>();
+    auto o = offsets.mutable_unchecked<1>();
+    for (std::size_t i = 0; i < n; ++i) c(i) = 0;
+    std::size_t k = 0;
+    for (std::size_t i = 0; i <= n; ++i) {
+      // offsets over the sorted pairs: pairs[offsets[i]:offsets[i + 1]] are (i, j > i).
+      o(i) = std::int64_t(k);
+      while (i < n && k < m && pairs.i[k] == i) ++k;
+    }
+    for (std::size_t q = 0; q < m; ++q) {
+      p(q, 0) = pairs.i[q];
+      p(q, 1) = pairs.j[q];
+      ++c(pairs.i[q]);
+      ++c(pairs.j[q]);
+    }
+  }
+  py::dict d;
+  d["pairs"] = out;
+  d["counts"] = counts;
+  d["offsets"] = offsets;
+  if (with_mu2) {
+    py::array_t<double> mu2{py::ssize_t(m)};
+    std::copy(pairs.mu2.begin(), pairs.mu2.end(), mu2.mutable_data());
+    d["mu2"] = mu2;
+  } else {
+    d["mu2"] = py::none();
+  }
+  py::dict r;
+  r["candidate_pairs"] = report.candidate_pairs;
+  r["solved"] = report.solved;
+  r["invalid"] = report.invalid;
+  r["found"] = report.found;
+  r["threads"] = report.threads;
+  r["seconds"] = report.seconds_total();
+  d["report"] = r;
+  return d;
+}
+
+py::dict screen(const py::object& positions, const py::object& orientations, const py::object& semi_axes,
+                const py::object& q, const py::object& type_semi_axes, const py::object& type_id,
+                const py::object& box, double cutoff, bool with_mu2, int threads) {
+  const int used = thread_count(threads);
+  pwcontact::ParticleStore store =
+      make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+  const pwcontact::Box b = make_box(box);
+  pwcontact::ScreenOptions options;
+  options.cutoff = cutoff;
+  options.with_mu2 = with_mu2;
+  options.threads = used;
+  pwcontact::ScreenedPairs pairs;
+  pwcontact::ScreenReport report;
+  {
+    py::gil_scoped_release release;
+    report = pwcontact::screen_pairs(store, b, options, pairs);
+  }
+  return screened(pairs, store.size(), with_mu2, report);
+}
+
+// A scene file read by the C++ readers, as arrays.
+py::dict scene_dict(const pwcontact::Scene& s) {
+  const std::size_t n = s.particles.size();
+  py::array_t<double> positions({py::ssize_t(n), py::ssize_t(3)}), q({py::ssize_t(n), py::ssize_t(6)});
+  auto p = positions.mutable_unchecked<2>();
+  auto f = q.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) p(i, k) = s.particles.centre(k)[i];
+    for (int k = 0; k < 6; ++k) f(i, k) = s.particles.q(k)[i];
+  }
+  py::dict d;
+  d["positions"] = positions;
+  d["q"] = q;
+  const std::array<double, 3> t = s.box.tilt;
+  d["box"] = py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], t[0], t[1], t[2],
+                            s.box.two_dimensional ? 2 : 3, s.box.periodic);
+  py::array_t<std::uint32_t> typeid_array{py::ssize_t(s.type_id.size())};
+  std::copy(s.type_id.begin(), s.type_id.end(), typeid_array.mutable_data());
+  d["typeid"] = typeid_array;
+  d["type_names"] = s.type_names;
+  py::array_t<std::uint64_t> id{py::ssize_t(s.id.size())};
+  std::copy(s.id.begin(), s.id.end(), id.mutable_data());
+  d["id"] = id;
+  d["frame"] = s.frame;
+  d["frames"] = s.frames;
+  return d;
+}
+
+// The persistent scene of trial moves (moving_scene.hpp).
+class PyMovingScene {
+ public:
+  PyMovingScene(const py::object& positions, const py::object& orientations, const py::object& semi_axes,
+                const py::object& q, const py::object& type_semi_axes, const py::object& type_id,
+                const py::object& box)
+      : scene_(make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, 1), make_box(box)) {}
+
+  std::size_t size() const { return scene_.size(); }
+
+  pwcontact::ParticleStore::Particle trial(const py::object& position, const py::object& orientation,
+                                           const py::object& semi_axes, const py::object& q,
+                                           const py::object& type_id) const {
+    const auto c = position.cast<std::array<double, 3>>();
+    const std::array<double, 4> o =
+        orientation.is_none() ? std::array<double, 4>{1, 0, 0, 0} : orientation.cast<std::array<double, 4>>();
+    const int given = int(!semi_axes.is_none()) + int(!q.is_none()) + int(!type_id.is_none());
+    if (given != 1) throw py::value_error("give the trial's shape one way: semi_axes, q or type_id");
+    if (!q.is_none()) return scene_.trial(c, q.cast<std::array<double, 6>>());
+    if (!semi_axes.is_none()) return scene_.trial_axes(c, semi_axes.cast<std::array<double, 3>>(), o);
+    return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
+  }
+
+  pwcontact::MovingScene scene_;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_pwcontact, m) {
+  m.doc() = "pwcontact's compiled core; use the pwcontact package.";
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const std::invalid_argument& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const std::out_of_range& e) {
+      PyErr_SetString(PyExc_IndexError, e.what());
+    }
+  });
+  m.def("contact_function", &contact_function, py::arg("r12"), py::arg("q1"), py::arg("q2"),
+        py::arg("outputs"), py::arg("precision"), py::arg("iterations"), py::arg("accuracy"),
+        py::arg("threads"), py::arg("isa"), py::arg("lambda_start"));
+  m.def("overlap", &overlap, py::arg("r12"), py::arg("q1"), py::arg("q2"), py::arg("cutoff"),
+        py::arg("precision"), py::arg("iterations"), py::arg("threads"), py::arg("isa"));
+  m.def("quadratic_form", &quadratic_form, py::arg("semi_axes"), py::arg("orientation"));
+  m.def("screen", &screen, py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"),
+        py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"), py::arg("cutoff"),
+        py::arg("with_mu2"), py::arg("threads"));
+  m.def("read_gsd", [](const std::string& path, std::int64_t frame) {
+    pwcontact::Scene s;
+    {
+      py::gil_scoped_release release;
+      s = pwcontact::read_gsd(path, frame);
+    }
+    return scene_dict(s);
+  });
+  m.def("read_lammps_data", [](const std::string& path) {
+    pwcontact::Scene s;
+    {
+      py::gil_scoped_release release;
+      s = pwcontact::read_lammps_data(path);
+    }
+    return scene_dict(s);
+  });
+  m.def("read_lammps_dump", [](const std::string& path, std::int64_t frame) {
+    pwcontact::Scene s;
+    {
+      py::gil_scoped_release release;
+      s = pwcontact::read_lammps_dump(path, frame);
+    }
+    return scene_dict(s);
+  });
+  m.def("status_names", [] {
+    std::vector<std::pair<std::string, std::string>> names;
+    for (int s = 0; s < pwcontact::status_count; ++s)
+      names.emplace_back(pwcontact::status_name(Status(s)), pwcontact::status_description(Status(s)));
+    return names;
+  });
+  m.def("supported_isas", [] {
+    std::vector<std::string> names;
+    for (pwcontact::Isa isa : pwcontact::supported_isas()) names.emplace_back(pwcontact::isa_name(isa));
+    return names;
+  });
+  m.def("spheroid_scene", [](std::size_t n, std::uint64_t seed, double packing, double max_aspect) {
+    pwcontact::SpheroidScene s;
+    {
+      py::gil_scoped_release release;
+      s = pwcontact::spheroid_scene(n, seed, packing, max_aspect);
+    }
+    py::array_t<double> positions({py::ssize_t(n), py::ssize_t(3)}), axes({py::ssize_t(n), py::ssize_t(3)}),
+        orientations({py::ssize_t(n), py::ssize_t(4)});
+    auto p = positions.mutable_unchecked<2>();
+    auto a = axes.mutable_unchecked<2>();
+    auto o = orientations.mutable_unchecked<2>();
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) p(i, k) = s.particles.centre(k)[i], a(i, k) = s.semi_axes[i][k];
+      for (int k = 0; k < 4; ++k) o(i, k) = s.orientation[i][k];
+    }
+    py::dict d;
+    d["positions"] = positions;
+    d["orientations"] = orientations;
+    d["semi_axes"] = axes;
+    d["box"] = py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], 0.0, 0.0, 0.0, 3, true);
+    return d;
+  });
+
+  py::class_<pwcontact::ParticleStore::Particle>(m, "Particle");
+  py::class_<PyMovingScene>(m, "MovingScene")
+      .def(py::init<const py::object&, const py::object&, const py::object&, const py::object&,
+                    const py::object&, const py::object&, const py::object&>(),
+           py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"), py::arg("q"),
+           py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"))
+      .def("__len__", &PyMovingScene::size)
+      .def("trial", &PyMovingScene::trial, py::arg("position"), py::arg("orientation"),
+           py::arg("semi_axes"), py::arg("q"), py::arg("typeid"))
+      .def("insert", [](PyMovingScene& s, const pwcontact::ParticleStore::Particle& p) { return s.scene_.insert(p); })
+      .def("remove", [](PyMovingScene& s, std::size_t i) { return s.scene_.remove(i); })
+      .def("move", [](PyMovingScene& s, std::size_t i, const pwcontact::ParticleStore::Particle& p) {
+        s.scene_.move(i, p);
+      })
+      .def("overlaps", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, std::int64_t exclude) {
+        py::gil_scoped_release release;
+        return s.scene_.overlaps(p, exclude);
+      })
+      .def("overlap_count", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
+                               std::int64_t exclude) {
+        py::gil_scoped_release release;
+        return s.scene_.overlap_count(p, exclude);
+      })
+      .def("neighbors", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, double cutoff,
+                           bool with_mu2, std::int64_t exclude) {
+        std::vector<pwcontact::Neighbor> found;
+        {
+          py::gil_scoped_release release;
+          found = s.scene_.neighbors(p, cutoff, with_mu2, exclude);
+        }
+        py::array_t<std::uint32_t> index{py::ssize_t(found.size())};
+        py::array_t<double> mu2{py::ssize_t(found.size())};
+        for (std::size_t k = 0; k < found.size(); ++k) {
+          index.mutable_data()[k] = found[k].index;
+          mu2.mutable_data()[k] = found[k].mu2;
+        }
+        return py::make_tuple(index, mu2);
+      })
+      .def("positions", [](const PyMovingScene& s) {
+        const auto& store = s.scene_.particles();
+        const std::size_t n = store.size();
+        py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
+        auto o = out.mutable_unchecked<2>();
+        for (std::size_t i = 0; i < n; ++i)
+          for (int k = 0; k < 3; ++k) o(i, k) = store.centre(k)[i];
+        return out;
+      })
+      .def("q", [](const PyMovingScene& s) {
+        const auto& store = s.scene_.particles();
+        const std::size_t n = store.size();
+        py::array_t<double> out({py::ssize_t(n), py::ssize_t(6)});
+        auto o = out.mutable_unchecked<2>();
+        for (std::size_t i = 0; i < n; ++i)
+          for (int k = 0; k < 6; ++k) o(i, k) = store.q(k)[i];
+        return out;
+      });
+  m.attr("none") = pwcontact::MovingScene::none;
+}
