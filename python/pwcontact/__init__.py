@@ -42,6 +42,7 @@ __all__ = [
     "read_gsd",
     "read_lammps_data",
     "read_lammps_dump",
+    "reference",
     "screen",
     "sphere",
     "spheroid",
@@ -58,6 +59,14 @@ def is_valid(status: Any) -> Any:
     """True where a status says the answer is valid (ok or ok_fallback)."""
     s = np.asarray(status)
     return (s == Status.ok) | (s == Status.ok_fallback)
+
+
+def reference(r12, q1, q2) -> Tuple[float, float, Status]:
+    """One pair through the scalar reference path (double): (mu2, lambda,
+    status). For a handful of pairs; contact_function is the fast path for
+    many (a Python loop over this pays the interpreter's cost per pair)."""
+    mu2, lam, status = _core.reference(r12, q1, q2)
+    return mu2, lam, Status(status)
 
 
 def supported_isas() -> list:
@@ -145,7 +154,7 @@ _OUTPUTS = ("mu2", "lambda", "contact_point", "normal", "gradient")
 def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
                      precision: str = "auto", iterations: Union[str, int] = "auto",
                      accuracy: str = "standard", threads: int = 0, isa: str = "auto",
-                     lambda_start=None) -> ContactResult:
+                     lambda_start=None, out: Optional[dict] = None) -> ContactResult:
     """mu**2 (and what else is asked for) of every pair.
 
     r12: (N, 3) or (3,); q1, q2: (N, 6) or (6,) (upper triangles, row-major).
@@ -157,6 +166,16 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512".
     lambda_start: optional (N,) array, a lambda to start each pair from (a
     warm start, e.g. the previous step's; NaN for none).
+    out: optional dict of arrays to write into, reused across calls:
+    "mu2", "lambda" (of the result's dtype) and "status" (uint8), each
+    C-contiguous of shape (N,).
+
+    Layout and cost: the kernels read each of the 15 numbers of the pairs as
+    its own contiguous column. Arrays whose columns are contiguous (a
+    Fortran-ordered (N, 3) array, or ``a.T`` of a C-ordered (3, N) one) are
+    read in place, in one call; any other layout (the usual C-ordered
+    (N, 3)) is transposed a chunk at a time, which costs a pass over the
+    pairs' memory (README: Python, the binding's cost).
 
     Returns a ContactResult. Raises ValueError for shapes and option values.
     """
@@ -165,7 +184,7 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
         if name not in _OUTPUTS:
             raise ValueError(f"unknown output {name!r} (outputs: {', '.join(_OUTPUTS)})")
     raw = _core.contact_function(r12, q1, q2, names, precision, iterations, accuracy, threads, isa,
-                                 lambda_start)
+                                 lambda_start, out)
     report = raw.pop("report")
     if "mu2" not in names:
         raw.pop("mu2", None)

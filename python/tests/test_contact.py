@@ -206,3 +206,36 @@ def test_the_gil_is_released_during_a_long_call():
     # (it lasts ~0.1 s; the thread ticks every ~1 ms when it can run).
     assert end - start > 0.02
     assert len(during) >= 3
+
+
+def test_the_scalar_reference_path_for_one_pair(reference_pairs):
+    r12, q1, q2, mu2, lam = reference_pairs["random"]
+    for k in range(0, 1000, 97):
+        m, l, status = pw.reference(r12[k], q1[k], q2[k])
+        assert status == pw.Status.ok
+        assert abs(m - mu2[k]) <= 1e-13 * mu2[k] and abs(l - lam[k]) <= 1e-13
+    assert pw.reference([1, 0, 0], [1, 0, 0, -1, 0, 1], pw.sphere(1))[2] == pw.Status.q1_not_positive_definite
+
+
+def test_out_arrays_are_written_in_place_and_checked(reference_pairs):
+    r12, q1, q2, _, _ = reference_pairs["random"]
+    n = len(r12)
+    out = {"mu2": np.empty(n), "lambda": np.empty(n), "status": np.empty(n, np.uint8)}
+    r = pw.contact_function(r12, q1, q2, out=out)
+    assert r.mu2 is out["mu2"] or np.shares_memory(r.mu2, out["mu2"])
+    assert np.array_equal(out["mu2"], pw.contact_function(r12, q1, q2).mu2)
+    with pytest.raises(ValueError, match=r"out\['mu2'\] must have dtype"):
+        pw.contact_function(r12, q1, q2, out={"mu2": np.empty(n, np.float32)})
+    with pytest.raises(ValueError, match=r"out\['status'\] must have shape"):
+        pw.contact_function(r12, q1, q2, out={"status": np.empty(n + 1, np.uint8)})
+    with pytest.raises(ValueError, match="C-contiguous"):
+        pw.contact_function(r12, q1, q2, out={"lambda": np.empty(2 * n)[::2]})
+
+
+def test_column_major_inputs_are_read_in_place_with_the_same_answers(reference_pairs):
+    r12, q1, q2, _, _ = reference_pairs["spread"]
+    rows = pw.contact_function(r12, q1, q2, threads=2)
+    columns = pw.contact_function(np.ascontiguousarray(r12.T).T, np.asfortranarray(q1),
+                                  np.asfortranarray(q2), threads=2)
+    assert np.array_equal(rows.mu2, columns.mu2) and np.array_equal(rows.lambda_, columns.lambda_)
+    assert np.array_equal(rows.status, columns.status)

@@ -123,7 +123,7 @@ pwcontact::BatchOptions batch_options(const std::string& precision, const py::ob
   return o;
 }
 
-constexpr std::size_t chunk_pairs = 4096;
+constexpr std::size_t chunk_pairs = 2048;
 
 struct Outputs {
   bool mu2 = true, lambda = false, contact_point = false, normal = false, gradient = false;
@@ -172,34 +172,112 @@ struct Totals {
   }
 };
 
-// Gathers pairs [begin, end) into `batch` (resized to end - begin).
-template <class T>
-void gather(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t begin,
-            std::size_t end, pwcontact::PairBatch<T>& batch) {
-  const std::size_t m = end - begin;
-  batch.resize(m);
-  for (int k = 0; k < 3; ++k) {
-    T* out = batch.r12(k).data();
-    for (std::size_t p = 0; p < m; ++p) out[p] = r12.at(begin + p, k);
-  }
-  for (int k = 0; k < 6; ++k) {
-    T* a = batch.q1(k).data();
-    T* b = batch.q2(k).data();
-    for (std::size_t p = 0; p < m; ++p) {
-      a[p] = q1.at(begin + p, k);
-      b[p] = q2.at(begin + p, k);
+// Columns [0, K) of rows [begin, begin + m) of `a` into out[0..K).
+template <int K, class T>
+void copy_columns(const Rows<T>& a, std::size_t begin, std::size_t m, T* const* out) {
+  if (a.broadcast) {
+    for (int k = 0; k < K; ++k) std::fill(out[k], out[k] + m, a.at(0, k));
+  } else if (a.column_stride == 1) {
+    // Rows of K contiguous numbers (a C-contiguous (N, K) array, or rows
+    // of a wider one): the transpose, unrolled over the K columns.
+    // (Column pointers in locals, restrict: else every store could alias
+    // the pointer array and each pointer is reloaded per number.)
+    const T* __restrict row = a.data + std::ptrdiff_t(begin) * a.row_stride;
+    const std::ptrdiff_t stride = a.row_stride;
+    T* __restrict column[K];
+    for (int k = 0; k < K; ++k) column[k] = out[k];
+    // Eight rows at a time through a small block, so that each column is
+    // written a cache line at a time (measured: 12.5 ns a pair from memory,
+    // 15 row by row, for the 15 numbers of a pair).
+    std::size_t p = 0;
+    for (; p + 8 <= m; p += 8) {
+      T block[K][8];
+      for (int i = 0; i < 8; ++i)
+        for (int k = 0; k < K; ++k) block[k][i] = row[std::ptrdiff_t(p + i) * stride + k];
+      for (int k = 0; k < K; ++k)
+        for (int i = 0; i < 8; ++i) column[k][p + i] = block[k][i];
     }
+    for (; p < m; ++p)
+      for (int k = 0; k < K; ++k) column[k][p] = row[std::ptrdiff_t(p) * stride + k];
+  } else {
+    for (int k = 0; k < K; ++k)
+      for (std::size_t p = 0; p < m; ++p) out[k][p] = a.at(begin + p, k);
   }
 }
 
-// Over chunks of pairs, in parallel, with the GIL released: body(thread's
-// batch, begin, end, totals).
+// An output array of n elements: the caller's (out[key], which must be a
+// writeable C-contiguous array of shape (n,) and of the result's dtype), or
+// a new one.
+template <class T>
+py::array_t<T> output_array(const py::object& out, const char* key, std::size_t n) {
+  if (out.is_none() || !py::cast<py::dict>(out).contains(key)) return py::array_t<T>(py::ssize_t(n));
+  const py::object given = py::cast<py::dict>(out)[key];
+  const std::string what = std::string("out['") + key + "']";
+  if (!py::isinstance<py::array>(given)) throw py::value_error(what + " must be a numpy array");
+  const py::array a = py::reinterpret_borrow<py::array>(given);
+  if (!a.dtype().is(py::dtype::of<T>()))
+    throw py::value_error(what + " must have dtype " + std::string(py::str(py::dtype::of<T>())) + ", got " +
+                          std::string(py::str(a.dtype())));
+  if (a.ndim() != 1 || std::size_t(a.shape(0)) != n)
+    throw py::value_error(what + " must have shape (" + std::to_string(n) + ",), got " + shape_text(a));
+  if (!(a.flags() & py::array::c_style) || !a.writeable())
+    throw py::value_error(what + " must be C-contiguous and writeable");
+  return py::reinterpret_borrow<py::array_t<T>>(given);
+}
+
+// Pairs [begin, end) gathered into `batch` (resized to end - begin).
+template <class T>
+pwcontact::PairBatchView<T> gathered(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2,
+                                     std::size_t begin, std::size_t end, pwcontact::PairBatch<T>& batch) {
+  const std::size_t m = end - begin;
+  batch.resize(m);
+  T* r[3];
+  T* a[6];
+  T* b[6];
+  for (int k = 0; k < 3; ++k) r[k] = batch.r12(k).data();
+  for (int k = 0; k < 6; ++k) a[k] = batch.q1(k).data(), b[k] = batch.q2(k).data();
+  copy_columns<3>(r12, begin, m, r);
+  copy_columns<6>(q1, begin, m, a);
+  copy_columns<6>(q2, begin, m, b);
+  return batch.view();
+}
+
+// Whether every column is contiguous (a Fortran-ordered (N, k) array, or the
+// transpose of a C-ordered (k, N) one): the batch calls then read the
+// caller's memory as it is, with no gather.
+template <class T>
+bool columns_contiguous(const Rows<T>& a) {
+  return !a.broadcast && (a.row_stride == 1 || a.rows <= 1);
+}
+
+// Pairs [begin, end) in place, for columns_contiguous arrays.
+template <class T>
+pwcontact::PairBatchView<T> direct(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2,
+                                   std::size_t begin, std::size_t end) {
+  pwcontact::PairBatchView<T> view;
+  view.size = end - begin;
+  for (int k = 0; k < 3; ++k) view.r12[k] = r12.data + k * r12.column_stride + std::ptrdiff_t(begin);
+  for (int k = 0; k < 6; ++k) {
+    view.q1[k] = q1.data + k * q1.column_stride + std::ptrdiff_t(begin);
+    view.q2[k] = q2.data + k * q2.column_stride + std::ptrdiff_t(begin);
+  }
+  return view;
+}
+
+// Over chunks of pairs, in parallel, with the GIL released: body(the
+// chunk's pairs, begin, end, totals, threads for the call); or, where every
+// column is contiguous, once over all pairs with every thread.
 template <class T, class Body>
 Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t n,
                    int threads, Body&& body) {
   Totals all;
   pwcontact::detail::ParallelErrors errors;
-  {
+  const bool columns = columns_contiguous(r12) && columns_contiguous(q1) && columns_contiguous(q2);
+  if (columns) {
+    // The caller's columns as they are: one call, the library's own threads.
+    py::gil_scoped_release release;
+    errors.run([&] { body(direct(r12, q1, q2, 0, n), std::size_t(0), n, all, threads); });
+  } else {
     py::gil_scoped_release release;
     const std::size_t chunks = (n + chunk_pairs - 1) / chunk_pairs;
 #pragma omp parallel num_threads(threads)
@@ -210,8 +288,7 @@ Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std
       for (std::size_t c = 0; c < chunks; ++c)
         errors.run([&] {
           const std::size_t begin = c * chunk_pairs, end = std::min(n, begin + chunk_pairs);
-          gather(r12, q1, q2, begin, end, batch);
-          body(batch, begin, end, mine);
+          body(gathered(r12, q1, q2, begin, end, batch), begin, end, mine, 1);
         });
 #pragma omp critical(pwcontact_python_totals)
       all.merge(mine);
@@ -242,7 +319,7 @@ template <class T>
 py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_in,
                                 const py::handle& q2_in, const Outputs& wanted,
                                 pwcontact::BatchOptions options, int threads,
-                                const py::object& lambda_start_in) {
+                                const py::object& lambda_start_in, const py::object& out_in) {
   const Rows<T> r12 = rows_of<T>(r12_in, 3, "r12"), q1 = rows_of<T>(q1_in, 6, "q1"),
                 q2 = rows_of<T>(q2_in, 6, "q2");
   const std::size_t n = common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
@@ -254,12 +331,13 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
     if (!lambda_start || lambda_start.ndim() != 1 || std::size_t(lambda_start.shape(0)) != n)
       throw py::value_error("lambda_start must have shape (" + std::to_string(n) + ",)");
   }
-  py::array_t<T> mu2{py::ssize_t(n)}, lambda;
-  py::array_t<std::uint8_t> status{py::ssize_t(n)};
-  py::array_t<T> point, normal, gradient;
   // mu2 is always computed (the kernels' answer); lambda and the vectors
-  // only when asked for.
-  if (wanted.lambda) lambda = py::array_t<T>(py::ssize_t(n));
+  // only when asked for. mu2, lambda and status go into the caller's arrays
+  // where `out` gives them (reused across calls: no fresh pages to fault in).
+  py::array_t<T> mu2 = output_array<T>(out_in, "mu2", n), lambda;
+  py::array_t<std::uint8_t> status = output_array<std::uint8_t>(out_in, "status", n);
+  py::array_t<T> point, normal, gradient;
+  if (wanted.lambda) lambda = output_array<T>(out_in, "lambda", n);
   if (wanted.contact_point) point = vectors<T>(n);
   if (wanted.normal) normal = vectors<T>(n);
   if (wanted.gradient) gradient = vectors<T>(n);
@@ -270,11 +348,11 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
   T* normal_data = wanted.normal ? normal.mutable_data() : nullptr;
   T* gradient_data = wanted.gradient ? gradient.mutable_data() : nullptr;
   const T* start_data = warm ? lambda_start.data() : nullptr;
-  options.threads = 1;
   const int used = thread_count(threads);
-  Totals totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatch<T>& batch, std::size_t begin,
-                                                        std::size_t end, Totals& mine) {
-    pwcontact::PairBatchView<T> view = batch.view();
+  Totals totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatchView<T> view, std::size_t begin,
+                                                        std::size_t end, Totals& mine, int call_threads) {
+    pwcontact::BatchOptions call_options = options;
+    call_options.threads = call_threads;
     if (start_data) view.lambda_start = start_data + begin;
     pwcontact::ContactOutputs<T> out;
     out.mu2 = mu2_data + begin;
@@ -285,7 +363,7 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
       if (normal_data) out.normal[k] = normal_data + k * n + begin;
       if (gradient_data) out.gradient[k] = gradient_data + k * n + begin;
     }
-    const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, options);
+    const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, call_options);
     mine.add(r);
     if (mine.isa.empty()) {
       mine.isa = pwcontact::isa_name(r.isa);
@@ -312,7 +390,7 @@ bool is_float32(const py::handle& object) {
 py::dict contact_function(const py::object& r12, const py::object& q1, const py::object& q2,
                           const std::vector<std::string>& outputs, const std::string& precision,
                           const py::object& iterations, const std::string& accuracy, int threads,
-                          const std::string& isa, const py::object& lambda_start) {
+                          const std::string& isa, const py::object& lambda_start, const py::object& out) {
   const Outputs wanted = parse_outputs(outputs);
   const pwcontact::BatchOptions options = batch_options(precision, iterations, accuracy, isa);
   // float32 pairs are solved as float pairs (float results) unless a
@@ -320,8 +398,8 @@ py::dict contact_function(const py::object& r12, const py::object& q1, const py:
   const bool single = is_float32(r12) && is_float32(q1) && is_float32(q2) &&
                       (options.precision == pwcontact::Precision::automatic ||
                        options.precision == pwcontact::Precision::single_precision);
-  if (single) return contact_function_typed<float>(r12, q1, q2, wanted, options, threads, lambda_start);
-  return contact_function_typed<double>(r12, q1, q2, wanted, options, threads, lambda_start);
+  if (single) return contact_function_typed<float>(r12, q1, q2, wanted, options, threads, lambda_start, out);
+  return contact_function_typed<double>(r12, q1, q2, wanted, options, threads, lambda_start, out);
 }
 
 template <class T>
@@ -335,12 +413,13 @@ py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const 
   py::array_t<std::uint8_t> status{py::ssize_t(n)};
   auto* overlap_data = reinterpret_cast<std::uint8_t*>(overlap.mutable_data());
   auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
-  options.threads = 1;
-  Totals totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatch<T>& batch,
+  Totals totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatchView<T> view,
                                                                         std::size_t begin, std::size_t,
-                                                                        Totals& mine) {
+                                                                        Totals& mine, int call_threads) {
+    pwcontact::BatchOptions call_options = options;
+    call_options.threads = call_threads;
     const pwcontact::BatchReport r = pwcontact::overlap_batch(
-        batch.view(), {overlap_data + begin, status_data + begin}, options, cutoff);
+        view, {overlap_data + begin, status_data + begin}, call_options, cutoff);
     mine.add(r);
     if (mine.isa.empty()) {
       mine.isa = pwcontact::isa_name(r.isa);
@@ -609,6 +688,47 @@ class PyMovingScene {
   pwcontact::MovingScene scene_;
 };
 
+// Seconds of the C++ calls the Python ones are measured against
+// (bench/python_overhead.py): the same numbers, already in the layout the
+// C++ API takes (SoA pairs; a ParticleStore), set up outside the timing.
+double now_seconds() { return omp_get_wtime(); }
+
+double time_batch(const py::array_t<double, py::array::c_style | py::array::forcecast>& r12,
+                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q1,
+                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q2, int threads) {
+  const std::size_t n = std::size_t(r12.shape(0));
+  pwcontact::PairBatch<double> batch(n);
+  for (std::size_t i = 0; i < n; ++i) batch.set(i, r12.data() + 3 * i, q1.data() + 6 * i, q2.data() + 6 * i);
+  std::vector<double> mu2(n), lambda(n);
+  std::vector<Status> status(n);
+  pwcontact::BatchOptions options;
+  options.threads = thread_count(threads);
+  py::gil_scoped_release release;
+  const double start = now_seconds();
+  pwcontact::contact_function_batch(batch.view(), {mu2.data(), lambda.data(), status.data()}, options);
+  return now_seconds() - start;
+}
+
+// (seconds of screen_pairs, seconds of building the store from the arrays)
+std::pair<double, double> time_screen(const py::object& positions, const py::object& orientations,
+                                      const py::object& semi_axes, const py::object& box, double cutoff,
+                                      int threads) {
+  const int used = thread_count(threads);
+  const double build_start = now_seconds();
+  const pwcontact::ParticleStore store =
+      make_store(positions, orientations, semi_axes, py::none(), py::none(), py::none(), used);
+  const double built = now_seconds() - build_start;
+  pwcontact::ScreenOptions options;
+  options.cutoff = cutoff;
+  options.threads = used;
+  pwcontact::ScreenedPairs pairs;
+  const pwcontact::Box b = make_box(box);
+  py::gil_scoped_release release;
+  const double start = now_seconds();
+  pwcontact::screen_pairs(store, b, options, pairs);
+  return {now_seconds() - start, built};
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_pwcontact, m) {
@@ -624,7 +744,7 @@ PYBIND11_MODULE(_pwcontact, m) {
   });
   m.def("contact_function", &contact_function, py::arg("r12"), py::arg("q1"), py::arg("q2"),
         py::arg("outputs"), py::arg("precision"), py::arg("iterations"), py::arg("accuracy"),
-        py::arg("threads"), py::arg("isa"), py::arg("lambda_start"));
+        py::arg("threads"), py::arg("isa"), py::arg("lambda_start"), py::arg("out"));
   m.def("overlap", &overlap, py::arg("r12"), py::arg("q1"), py::arg("q2"), py::arg("cutoff"),
         py::arg("precision"), py::arg("iterations"), py::arg("threads"), py::arg("isa"));
   m.def("quadratic_form", &quadratic_form, py::arg("semi_axes"), py::arg("orientation"));
@@ -655,6 +775,14 @@ PYBIND11_MODULE(_pwcontact, m) {
     }
     return scene_dict(s);
   });
+  // The scalar reference path for one pair (as a per-pair binding is used).
+  m.def("reference", [](const std::array<double, 3>& r12, const std::array<double, 6>& q1,
+                        const std::array<double, 6>& q2) {
+    const pwcontact::ContactResult<double> r = pwcontact::contact_function<double>(r12.data(), q1.data(), q2.data());
+    return py::make_tuple(r.mu2, r.lambda, int(r.status));
+  }, py::arg("r12"), py::arg("q1"), py::arg("q2"));
+  m.def("_time_batch", &time_batch);
+  m.def("_time_screen", &time_screen);
   m.def("status_names", [] {
     std::vector<std::pair<std::string, std::string>> names;
     for (int s = 0; s < pwcontact::status_count; ++s)
