@@ -13,6 +13,8 @@
 #   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
 #   bash scripts/run.sh moves-bench [args]   trial moves, Monte Carlo sweeps, neighbour lists
 #                                     and FCL (pwcontact_moves; installs libfcl-dev)
+#   bash scripts/run.sh python-bench [args]  what the Python binding costs against the C++
+#                                     calls (bench/python_overhead.py; --threads N)
 #   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
 #                                     Markdown and a gnuplot plot), labelled with the
 #                                     commit measured; to refresh the README's figures:
@@ -24,8 +26,8 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 job="${1:-}"
 [ $# -gt 0 ] && shift
 case "$job" in
-  demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|trade) ;;
-  *) echo "usage: bash scripts/run.sh demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|trade [args...]" >&2; exit 2 ;;
+  demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|python-bench|trade) ;;
+  *) echo "usage: bash scripts/run.sh demo|test|sanitize|fuzz|tsan|bench|screen-bench|moves-bench|python-bench|trade [args...]" >&2; exit 2 ;;
 esac
 
 # Debian packages the build needs (compiler, CMake, and every dependency).
@@ -121,6 +123,10 @@ case "$job" in
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_moves
     exec build/release/bench/pwcontact_moves "$@" ;;
+  python-bench)
+    cmake --preset release >/dev/null
+    cmake --build --preset release -j "$jobs" --target _pwcontact
+    PYTHONPATH=build/release/python exec /usr/bin/python3 bench/python_overhead.py "$@" ;;
   trade)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_trade
