@@ -372,6 +372,20 @@ class ScreenResult:
         return f"ScreenResult({len(self.pairs)} pairs)"
 
 
+def _check_in_plane(positions, orientations) -> None:
+    """A 2D scene: centres at z = 0, rotations about z (as the GSD reader checks)."""
+    off = np.flatnonzero(positions[:, 2] != 0)
+    if len(off):
+        raise ValueError(f"a two-dimensional box, but particle {off[0]} has z = {positions[off[0], 2]!r}, not 0")
+    if orientations is not None:
+        o = np.asarray(orientations, dtype=float).reshape(-1, 4)
+        norm = np.sum(o * o, axis=1)
+        tilted = np.flatnonzero(o[:, 1] ** 2 + o[:, 2] ** 2 > 1e-12 * norm)
+        if len(tilted):
+            raise ValueError(f"a two-dimensional box, but the orientation of particle {tilted[0]} "
+                             f"({', '.join(map(repr, o[tilted[0]]))}) is not a rotation about z")
+
+
 def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None, typeid=None,
            box=None, cutoff: float = 1.0, with_mu2: bool = False, threads: int = 0,
            **ignored) -> ScreenResult:
@@ -381,8 +395,11 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     positions (N, 3); the shapes one way: ``semi_axes`` (N, 3), or (3,) for
     one shape (searched as identical shapes), with ``orientations`` (N, 4)
     quaternions (w, x, y, z) (default: identity); or ``type_semi_axes`` (T, 3)
-    with ``typeid`` (N,) (as GSD gives shapes per type); or ``q`` (N, 6)
-    forms. box: None (open), a Box, or anything Box.from_box takes.
+    with ``typeid`` (N,) (as GSD gives shapes per type; also accepted as
+    ``semi_axes=(type_semi_axes, typeid)``); or ``q`` (N, 6) forms. In a 2D
+    box the particles are ellipses in the z = 0 plane: z must be 0 and every
+    orientation a rotation about z (ValueError naming the particle
+    otherwise), the third semi-axis at most the smaller of the other two. box: None (open), a Box, or anything Box.from_box takes.
     cutoff >= 1 reports near pairs too (mu < cutoff). Keyword arguments that
     read_gsd / read_lammps_* return beside these (type_names, frame, ...)
     are accepted and ignored, so that ``screen(**read_gsd(path))`` works.
@@ -390,8 +407,15 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     for key in ignored:
         if key not in ("type_names", "frame", "frames", "id"):
             raise TypeError(f"screen() got an unexpected keyword argument {key!r}")
+    if isinstance(semi_axes, tuple) and len(semi_axes) == 2:
+        if type_semi_axes is not None or typeid is not None:
+            raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
+        type_semi_axes, typeid = semi_axes
+        semi_axes = None
     b = _as_box(box)
     positions = np.asarray(positions, dtype=float)
+    if b is not None and b.is2D:
+        _check_in_plane(positions, orientations)
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                        None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads))
     return ScreenResult(raw, positions, b)
@@ -412,8 +436,10 @@ def read_gsd(path: str, frame: int = -1) -> dict:
     gsd package (python3-gsd; Snapshot and Frame APIs), as the keyword
     arguments of screen: positions, orientations (w, x, y, z),
     type_semi_axes (from particles/type_shapes: Ellipsoid a, b, c; Sphere
-    diameter / 2), typeid, box (a Box: configuration/box, 2D by
-    configuration/dimensions), with type_names and frame."""
+    diameter / 2; in 2D Ellipse or Ellipsoid a, b), typeid, box (a Box:
+    configuration/box, 2D by configuration/dimensions), with type_names and
+    frame. ValueError names the file, frame and type of a shape it cannot
+    take."""
     import gsd.hoomd
 
     with gsd.hoomd.open(path, "rb") as trajectory:
@@ -422,24 +448,27 @@ def read_gsd(path: str, frame: int = -1) -> dict:
         n = int(particles.N)
         types = list(particles.types) if particles.types is not None else ["A"]
         shapes = list(particles.type_shapes) if particles.type_shapes is not None else []
+        dimensions = int(snap.configuration.dimensions) if snap.configuration.dimensions is not None else 3
         axes = []
         for t, name in enumerate(types):
             shape = shapes[t] if t < len(shapes) else {}
             kind = shape.get("type") if isinstance(shape, Mapping) else None
-            if kind == "Ellipsoid":
-                axes.append([float(shape["a"]), float(shape["b"]), float(shape["c"])])
+            if kind == "Ellipsoid" or (kind == "Ellipse" and dimensions == 2):
+                a, b = float(shape["a"]), float(shape["b"])
+                # (In 2D the third semi-axis does not change mu: min(a, b), as the C++ reader.)
+                c = min(a, b) if dimensions == 2 else float(shape["c"])
+                axes.append([a, b, c])
             elif kind == "Sphere":
                 r = float(shape["diameter"]) / 2
                 axes.append([r, r, r])
             else:
                 raise ValueError(f"{path}: frame {index}: type {name!r} has no Ellipsoid or Sphere shape "
-                                 f"in particles/type_shapes (got {shape!r})")
+                                 f"(or Ellipse in 2D) in particles/type_shapes (got {shape!r})")
         position = np.asarray(particles.position, dtype=float).reshape(n, 3)
         orientation = (np.asarray(particles.orientation, dtype=float).reshape(n, 4)
                        if particles.orientation is not None else np.tile([1.0, 0, 0, 0], (n, 1)))
         typeid = (np.asarray(particles.typeid, dtype=np.uint32)
                   if particles.typeid is not None else np.zeros(n, dtype=np.uint32))
-        dimensions = int(snap.configuration.dimensions) if snap.configuration.dimensions is not None else 3
         box = Box.from_box(list(snap.configuration.box), dimensions=dimensions)
     return {"positions": position, "orientations": orientation, "type_semi_axes": np.array(axes),
             "typeid": typeid, "box": box, "type_names": types, "frame": index}
@@ -459,10 +488,13 @@ def read_lammps_data(path: str) -> dict:
     return _scene(_core.read_lammps_data(str(path)))
 
 
-def read_lammps_dump(path: str, frame: int = -1) -> dict:
-    """Frame `frame` of a LAMMPS text dump (dump custom with positions,
-    shapex shapey shapez and quatw quati quatj quatk), as read_lammps_data."""
-    return _scene(_core.read_lammps_dump(str(path), int(frame)))
+def read_lammps_dump(path: str, frame: int = -1, columns: Optional[Mapping[str, str]] = None) -> dict:
+    """Frame `frame` (negative: from the end) of a LAMMPS text dump (dump
+    custom with positions, shapes as diameters, and quaternions), as
+    read_lammps_data. Columns are found by their usual names (x y z or xu yu
+    zu, shapex shapey shapez, quatw quati quatj quatk); ``columns`` maps
+    those names to others, e.g. {"shapex": "c_s[1]", ...} for a compute's."""
+    return _scene(_core.read_lammps_dump(str(path), int(frame), dict(columns or {})))
 
 
 def read_gsd_native(path: str, frame: int = -1) -> dict:

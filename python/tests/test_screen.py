@@ -165,3 +165,72 @@ def test_threads_do_not_change_the_pairs():
     one = pw.screen(**scene, cutoff=1.2, with_mu2=True, threads=1)
     two = pw.screen(**scene, cutoff=1.2, with_mu2=True, threads=2)
     assert np.array_equal(one.pairs, two.pairs) and np.array_equal(one.mu2, two.mu2)
+
+
+DATA = __import__("pathlib").Path(__file__).resolve().parents[2] / "tests" / "data"
+
+
+def cli_pairs(cli, path, cutoff, *extra):
+    out = subprocess.run([cli, "screen", "--cutoff", str(cutoff), "--with-mu2", *extra, str(path)],
+                         check=True, capture_output=True, text=True).stdout
+    rows = [line.split() for line in out.splitlines() if line and not line.startswith("#")]
+    return (np.array([[int(r[0]), int(r[1])] for r in rows], dtype=np.uint32).reshape(-1, 2),
+            np.array([float(r[2]) for r in rows]))
+
+
+@pytest.mark.parametrize("name", ["hoomd_triclinic.gsd", "hoomd_ellipses_2d.gsd"])
+def test_files_written_by_hoomd_screen_as_the_command_line_does(cli, name):
+    """GSD files HOOMD-blue wrote (tests/data): 3D triclinic, and ellipses in 2D."""
+    path = DATA / name
+    for cutoff in (1.0, 1.5):
+        expected, mu2 = cli_pairs(cli, path, cutoff)
+        scene = pw.read_gsd(str(path))
+        got = pw.screen(**scene, cutoff=cutoff, with_mu2=True)
+        assert np.array_equal(got.pairs, expected)
+        # float32 positions widened alike; the forms from the same semi-axes
+        # and quaternions (the 2D reader's from an angle): mu2 to a few ulps.
+        assert np.allclose(got.mu2, mu2, rtol=1e-13, atol=0)
+        native = pw.screen(**pw.read_gsd_native(str(path)), cutoff=cutoff, with_mu2=True)
+        assert np.array_equal(native.pairs, expected) and np.array_equal(native.mu2, mu2)
+
+
+@pytest.mark.parametrize("name", ["lammps_triclinic.data", "lammps_triclinic.dump"])
+def test_lammps_files_through_the_cpp_readers(cli, name):
+    path = DATA / name
+    extra = []
+    if name.endswith(".data"):
+        scene = pw.read_lammps_data(str(path))
+    else:
+        # The dump's shapes and quaternions are a compute's columns.
+        names = {"shapex": "c_s[1]", "shapey": "c_s[2]", "shapez": "c_s[3]",
+                 "quatw": "c_q[1]", "quati": "c_q[2]", "quatj": "c_q[3]", "quatk": "c_q[4]"}
+        with pytest.raises(ValueError, match="no column shapex"):
+            pw.read_lammps_dump(str(path))
+        with pytest.raises(ValueError, match="unknown keys shape"):
+            pw.read_lammps_dump(str(path), columns={"shape": "c_s[1]"})
+        scene = pw.read_lammps_dump(str(path), columns=names)
+        extra = ["--columns", ",".join(f"{k}={v}" for k, v in names.items())]
+    assert scene["positions"].shape[1] == 3 and len(scene["id"]) == len(scene["positions"])
+    got = pw.screen(**scene, cutoff=1.4, with_mu2=True)
+    expected, mu2 = cli_pairs(cli, path, 1.4, *extra)
+    assert np.array_equal(got.pairs, expected) and np.array_equal(got.mu2, mu2)
+    with pytest.raises(ValueError):
+        pw.read_lammps_data(str(DATA / "hoomd_triclinic.gsd"))
+
+
+def test_a_two_dimensional_box_takes_only_particles_in_the_plane():
+    positions = np.array([[0.0, 0, 0], [1.5, 0, 0]])
+    box = pw.Box(10, 10, is2D=True)
+    ok = pw.screen(positions, None, [1.0, 0.5, 0.5], box=box, cutoff=1.0)
+    assert np.array_equal(ok.pairs, [[0, 1]])
+    with pytest.raises(ValueError, match="particle 1 has z"):
+        pw.screen(positions + [[0, 0, 0], [0, 0, 0.1]], None, [1.0, 0.5, 0.5], box=box)
+    tilted = np.array([[1.0, 0, 0, 0], [0.9, 0.3, 0, 0]])
+    with pytest.raises(ValueError, match="orientation of particle 1"):
+        pw.screen(positions, tilted, [1.0, 0.5, 0.5], box=box)
+
+
+def test_semi_axes_given_as_a_pair_of_type_arrays():
+    positions = np.array([[0.0, 0, 0], [1.5, 0, 0], [5, 5, 5]])
+    res = pw.screen(positions, None, (np.array([[1.0, 0.5, 0.5], [0.2, 0.2, 0.2]]), np.array([0, 0, 1])))
+    assert np.array_equal(res.pairs, [[0, 1]])

@@ -14,6 +14,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <map>
+
 #include <omp.h>
 
 #include <algorithm>
@@ -767,11 +769,36 @@ PYBIND11_MODULE(_pwcontact, m) {
     }
     return scene_dict(s);
   });
-  m.def("read_lammps_dump", [](const std::string& path, std::int64_t frame) {
+  m.def("read_lammps_dump", [](const std::string& path, std::int64_t frame,
+                               const std::map<std::string, std::string>& names) {
+    // Column names by what they hold (x y z, shapex shapey shapez, quatw
+    // quati quatj quatk), as the command line's --columns.
+    pwcontact::LammpsColumns columns;
+    const char* position[3] = {"x", "y", "z"};
+    const char* shape[3] = {"shapex", "shapey", "shapez"};
+    const char* quaternion[4] = {"quatw", "quati", "quatj", "quatk"};
+    std::size_t used = 0;
+    auto take = [&](const char* key, std::string& into) {
+      if (const auto it = names.find(key); it != names.end()) into = it->second, ++used;
+    };
+    for (int k = 0; k < 3; ++k) take(position[k], columns.position[k]), take(shape[k], columns.shape[k]);
+    for (int k = 0; k < 4; ++k) take(quaternion[k], columns.quaternion[k]);
+    if (used != names.size()) {
+      std::string unknown;
+      for (const auto& [key, value] : names) {
+        bool known = false;
+        for (const char* k : position) known |= key == k;
+        for (const char* k : shape) known |= key == k;
+        for (const char* k : quaternion) known |= key == k;
+        if (!known) unknown += (unknown.empty() ? "" : ", ") + key;
+      }
+      throw py::value_error("columns: unknown keys " + unknown +
+                            " (keys: x y z shapex shapey shapez quatw quati quatj quatk)");
+    }
     pwcontact::Scene s;
     {
       py::gil_scoped_release release;
-      s = pwcontact::read_lammps_dump(path, frame);
+      s = pwcontact::read_lammps_dump(path, frame, columns);
     }
     return scene_dict(s);
   });
