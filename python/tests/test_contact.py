@@ -175,7 +175,7 @@ def test_quadratic_form_matches_the_rotation_it_names():
     assert np.max(np.abs(q - expected)) < 1e-12 * np.max(axes) ** 2
     with pytest.raises(ValueError):
         pw.quadratic_form([1, 1, 1], [0, 0, 0, 0])
-    with pytest.raises(ValueError, match="semi_axes of particle 0"):
+    with pytest.raises(ValueError, match="particle 0: semi_axes must be positive"):
         pw.quadratic_form([1, -1, 1], [1, 0, 0, 0])
     assert np.allclose(pw.spheroid(1, 2, (0, 0, 1)), [1, 0, 0, 1, 0, 4])
 

@@ -460,16 +460,27 @@ py::array_t<double> quadratic_form(const py::object& semi_axes_in, const py::obj
                                     {"semi_axes", "orientation"});
   py::array_t<double> out({py::ssize_t(n), py::ssize_t(6)});
   double* data = out.mutable_data();
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::array<double, 3> a = {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)};
-    for (int k = 0; k < 3; ++k)
-      if (!(a[k] > 0) || !std::isfinite(a[k]))
-        throw py::value_error("semi_axes of particle " + std::to_string(i) +
-                              " must be positive and finite, got " + std::to_string(a[k]));
-    const pwcontact::QuadraticForm f = pwcontact::quadratic_form_from_quaternion(
-        a, {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3)});
-    std::copy(f.begin(), f.end(), data + 6 * i);
+  // (Without the GIL: the first bad particle is noted, and named after.)
+  std::size_t bad = n;
+  std::string why;
+  {
+    py::gil_scoped_release release;
+    for (std::size_t i = 0; i < n && bad == n; ++i) {
+      const std::array<double, 3> a = {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)};
+      for (int k = 0; k < 3 && bad == n; ++k)
+        if (!(a[k] > 0) || !std::isfinite(a[k]))
+          bad = i, why = "semi_axes must be positive and finite, got " + std::to_string(a[k]);
+      if (bad != n) break;
+      try {
+        const pwcontact::QuadraticForm f = pwcontact::quadratic_form_from_quaternion(
+            a, {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3)});
+        std::copy(f.begin(), f.end(), data + 6 * i);
+      } catch (const std::invalid_argument& e) {
+        bad = i, why = e.what();
+      }
+    }
   }
+  if (bad != n) throw py::value_error("particle " + std::to_string(bad) + ": " + why);
   return out;
 }
 
