@@ -154,13 +154,17 @@ struct Totals {
   double evaluations = 0;
   std::string isa, precision;
   void add(const pwcontact::BatchReport& r) {
-    pairs += r.pairs;
-    fallbacks += r.fallbacks;
-    invalid += r.invalid;
-    decided_by_prefilter += r.decided_by_prefilter;
-    decided_by_certificate += r.decided_by_certificate;
-    overlapping += r.overlapping;
-    evaluations += r.mean_evaluations * double(r.pairs);
+    Totals t;
+    t.pairs = r.pairs;
+    t.fallbacks = r.fallbacks;
+    t.invalid = r.invalid;
+    t.decided_by_prefilter = r.decided_by_prefilter;
+    t.decided_by_certificate = r.decided_by_certificate;
+    t.overlapping = r.overlapping;
+    t.evaluations = r.mean_evaluations * double(r.pairs);
+    t.isa = pwcontact::isa_name(r.isa);
+    t.precision = pwcontact::precision_name(r.precision);
+    merge(t);
   }
   void merge(const Totals& t) {
     pairs += t.pairs;
@@ -367,10 +371,6 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
     }
     const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, call_options);
     mine.add(r);
-    if (mine.isa.empty()) {
-      mine.isa = pwcontact::isa_name(r.isa);
-      mine.precision = pwcontact::precision_name(r.precision);
-    }
     (void)end;
   });
   py::dict result;
@@ -423,10 +423,6 @@ py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const 
     const pwcontact::BatchReport r = pwcontact::overlap_batch(
         view, {overlap_data + begin, status_data + begin}, call_options, cutoff);
     mine.add(r);
-    if (mine.isa.empty()) {
-      mine.isa = pwcontact::isa_name(r.isa);
-      mine.precision = pwcontact::precision_name(r.precision);
-    }
   });
   py::dict result;
   result["overlap"] = overlap;
@@ -647,19 +643,24 @@ py::dict screen(const py::object& positions, const py::object& orientations, con
   return screened(pairs, store.size(), with_mu2, report);
 }
 
+// The store's centres (N, 3), or its forms (N, 6), as rows.
+py::array_t<double> store_rows(const pwcontact::ParticleStore& store, bool forms) {
+  const std::size_t n = store.size();
+  const int k_count = forms ? 6 : 3;
+  py::array_t<double> out({py::ssize_t(n), py::ssize_t(k_count)});
+  auto o = out.mutable_unchecked<2>();
+  for (int k = 0; k < k_count; ++k) {
+    const std::vector<double>& column = forms ? store.q(k) : store.centre(k);
+    for (std::size_t i = 0; i < n; ++i) o(i, k) = column[i];
+  }
+  return out;
+}
+
 // A scene file read by the C++ readers, as arrays.
 py::dict scene_dict(const pwcontact::Scene& s) {
-  const std::size_t n = s.particles.size();
-  py::array_t<double> positions({py::ssize_t(n), py::ssize_t(3)}), q({py::ssize_t(n), py::ssize_t(6)});
-  auto p = positions.mutable_unchecked<2>();
-  auto f = q.mutable_unchecked<2>();
-  for (std::size_t i = 0; i < n; ++i) {
-    for (int k = 0; k < 3; ++k) p(i, k) = s.particles.centre(k)[i];
-    for (int k = 0; k < 6; ++k) f(i, k) = s.particles.q(k)[i];
-  }
   py::dict d;
-  d["positions"] = positions;
-  d["q"] = q;
+  d["positions"] = store_rows(s.particles, false);
+  d["q"] = store_rows(s.particles, true);
   const std::array<double, 3> t = s.box.tilt;
   d["box"] = py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], t[0], t[1], t[2],
                             s.box.two_dimensional ? 2 : 3, s.box.periodic);
@@ -893,23 +894,7 @@ PYBIND11_MODULE(_pwcontact, m) {
         }
         return py::make_tuple(index, mu2);
       })
-      .def("positions", [](const PyMovingScene& s) {
-        const auto& store = s.scene_.particles();
-        const std::size_t n = store.size();
-        py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
-        auto o = out.mutable_unchecked<2>();
-        for (std::size_t i = 0; i < n; ++i)
-          for (int k = 0; k < 3; ++k) o(i, k) = store.centre(k)[i];
-        return out;
-      })
-      .def("q", [](const PyMovingScene& s) {
-        const auto& store = s.scene_.particles();
-        const std::size_t n = store.size();
-        py::array_t<double> out({py::ssize_t(n), py::ssize_t(6)});
-        auto o = out.mutable_unchecked<2>();
-        for (std::size_t i = 0; i < n; ++i)
-          for (int k = 0; k < 6; ++k) o(i, k) = store.q(k)[i];
-        return out;
-      });
+      .def("positions", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
+      .def("q", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), true); });
   m.attr("none") = pwcontact::MovingScene::none;
 }
