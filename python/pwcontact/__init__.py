@@ -561,6 +561,17 @@ class MovingScene:
         return self._scene.neighbors(self._trial(position, orientation, semi_axes, q, typeid), float(cutoff),
                                      bool(with_mu2), -1 if exclude is None else int(exclude))
 
+    def overlaps_many(self, positions, orientations=None, semi_axes=None, *, q=None, exclude=None,
+                      threads: int = 0) -> np.ndarray:
+        """Many independent trials at once (e.g. one per domain of a
+        checkerboard sweep): for each row, the index of a particle it
+        overlaps (as overlaps() would answer it) or -1; identical to the
+        single queries whatever the thread count. positions (M, 3); shapes by
+        semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,);
+        exclude (M,) (-1: none). Returns (M,) int64."""
+        return self._scene.overlaps_many(np.asarray(positions, dtype=float), orientations, semi_axes, q, exclude,
+                                         int(threads))
+
     def insert(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> int:
         """Stores a particle; returns its index (len(scene) - 1)."""
         return self._scene.insert(self._trial(position, orientation, semi_axes, q, typeid))

@@ -120,6 +120,9 @@ class MovingScene:
                   semi_axes: Optional[ArrayLike] = ..., *, q: Optional[ArrayLike] = ...,
                   typeid: Optional[int] = ..., cutoff: float = ..., with_mu2: bool = ...,
                   exclude: Optional[int] = ...) -> Tuple[np.ndarray, np.ndarray]: ...
+    def overlaps_many(self, positions: ArrayLike, orientations: Optional[ArrayLike] = ...,
+                      semi_axes: Optional[ArrayLike] = ..., *, q: Optional[ArrayLike] = ...,
+                      exclude: Optional[ArrayLike] = ..., threads: int = ...) -> np.ndarray: ...
     def insert(self, position: ArrayLike, orientation: Optional[ArrayLike] = ...,
                semi_axes: Optional[ArrayLike] = ..., *, q: Optional[ArrayLike] = ...,
                typeid: Optional[int] = ...) -> int: ...

@@ -58,3 +58,29 @@ def test_bad_moves_raise_and_leave_the_scene_unchanged():
     assert np.array_equal(scene.positions, before)
     assert scene.overlaps([0.9, 0, 0], None, [0.5, 0.5, 0.5]) == 0
     assert scene.overlaps([1.1, 0, 0], None, [0.5, 0.5, 0.5]) is None
+
+
+def test_many_trials_at_once_answer_as_the_single_queries():
+    rng = np.random.default_rng(12)
+    n = 400
+    positions = rng.uniform(0, 10, (n, 3))
+    orientations = rng.normal(size=(n, 4))
+    scene = pw.MovingScene(positions, orientations, [0.25, 0.25, 0.8], box=pw.Box.cube(10))
+    m = 300
+    which = rng.integers(0, n, m)
+    trial_positions = positions[which] + rng.uniform(-0.4, 0.4, (m, 3))
+    trial_orientations = rng.normal(size=(m, 4))
+    single = [scene.overlaps(trial_positions[k], trial_orientations[k], [0.25, 0.25, 0.8], exclude=int(which[k]))
+              for k in range(m)]
+    expected = np.array([-1 if f is None else f for f in single])
+    assert 0 < np.count_nonzero(expected >= 0) < m
+    for threads in (1, 2):
+        got = scene.overlaps_many(trial_positions, trial_orientations, [0.25, 0.25, 0.8], exclude=which,
+                                  threads=threads)
+        assert got.dtype == np.int64 and np.array_equal(got, expected)
+    bad = trial_orientations.copy()
+    bad[7] = 0
+    with pytest.raises(ValueError, match="trial 7"):
+        scene.overlaps_many(trial_positions, bad, [0.25, 0.25, 0.8])
+    with pytest.raises(ValueError, match="exclude must have shape"):
+        scene.overlaps_many(trial_positions, trial_orientations, [0.25, 0.25, 0.8], exclude=which[:5])

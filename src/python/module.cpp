@@ -699,6 +699,45 @@ class PyMovingScene {
     return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
   }
 
+  // Trial particles from arrays: positions (M, 3) and one of semi_axes
+  // (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,); a bad one
+  // named by its row.
+  std::vector<pwcontact::ParticleStore::Particle> trials(const py::object& positions_in,
+                                                         const py::object& orientations_in,
+                                                         const py::object& semi_axes_in,
+                                                         const py::object& q_in) const {
+    const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
+    const std::size_t m = positions.broadcast ? 1 : positions.rows;
+    const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none());
+    if (given != 1) throw py::value_error("give the trials' shapes one way: semi_axes or q");
+    const double identity[4] = {1, 0, 0, 0};
+    Rows<double> orientations;
+    orientations.data = identity;
+    orientations.rows = 1;
+    orientations.broadcast = true;
+    if (!orientations_in.is_none()) orientations = rows_of<double>(orientations_in, 4, "orientations");
+    const Rows<double> shape = q_in.is_none() ? rows_of<double>(semi_axes_in, 3, "semi_axes")
+                                              : rows_of<double>(q_in, 6, "q");
+    common_rows({{positions.rows, positions.broadcast}, {orientations.rows, orientations.broadcast},
+                 {shape.rows, shape.broadcast}},
+                {"positions", "orientations", q_in.is_none() ? "semi_axes" : "q"});
+    std::vector<pwcontact::ParticleStore::Particle> out;
+    out.reserve(m);
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::string who = "trial " + std::to_string(k);
+      const std::array<double, 3> c = {positions.at(k, 0), positions.at(k, 1), positions.at(k, 2)};
+      if (q_in.is_none())
+        out.push_back(pwcontact::ParticleStore::particle_axes(
+            c, {shape.at(k, 0), shape.at(k, 1), shape.at(k, 2)},
+            {orientations.at(k, 0), orientations.at(k, 1), orientations.at(k, 2), orientations.at(k, 3)}, who));
+      else
+        out.push_back(pwcontact::ParticleStore::particle(
+            c, {shape.at(k, 0), shape.at(k, 1), shape.at(k, 2), shape.at(k, 3), shape.at(k, 4), shape.at(k, 5)},
+            who));
+    }
+    return out;
+  }
+
   pwcontact::MovingScene scene_;
 };
 
@@ -893,6 +932,27 @@ PYBIND11_MODULE(_pwcontact, m) {
           mu2.mutable_data()[k] = found[k].mu2;
         }
         return py::make_tuple(index, mu2);
+      })
+      .def("overlaps_many", [](const PyMovingScene& s, const py::object& positions, const py::object& orientations,
+                               const py::object& semi_axes, const py::object& q, const py::object& exclude_in,
+                               int threads) {
+        const std::vector<pwcontact::ParticleStore::Particle> trials = s.trials(positions, orientations, semi_axes, q);
+        const std::size_t m = trials.size();
+        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> exclude;
+        if (!exclude_in.is_none()) {
+          exclude = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(exclude_in);
+          if (!exclude || exclude.ndim() != 1 || std::size_t(exclude.shape(0)) != m)
+            throw py::value_error("exclude must have shape (" + std::to_string(m) + ",)");
+        }
+        const std::int64_t* exclude_data = exclude_in.is_none() ? nullptr : exclude.data();
+        py::array_t<std::int64_t> first{py::ssize_t(m)};
+        std::int64_t* first_data = first.mutable_data();
+        const int used = thread_count(threads);
+        {
+          py::gil_scoped_release release;
+          s.scene_.overlaps(trials.data(), exclude_data, m, first_data, used);
+        }
+        return first;
       })
       .def("positions", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
       .def("q", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), true); });
