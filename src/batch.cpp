@@ -481,4 +481,23 @@ BatchReport overlap_batch(const PairBatchView<float>& pairs, const OverlapOutput
   return overlap_only(pairs, out, options, cutoff);
 }
 
+void add_report(BatchReport& total, const BatchReport& call) {
+  const double evaluations =
+      total.mean_evaluations * double(total.pairs) + call.mean_evaluations * double(call.pairs);
+  total.pairs += call.pairs;
+  total.fallbacks += call.fallbacks;
+  total.invalid += call.invalid;
+  for (int s = 0; s < status_count; ++s) total.status_counts[s] += call.status_counts[s];
+  total.decided_by_prefilter += call.decided_by_prefilter;
+  total.decided_by_certificate += call.decided_by_certificate;
+  total.overlapping += call.overlapping;
+  total.mean_evaluations = total.pairs ? evaluations / double(total.pairs) : 0;
+  total.isa = call.isa;
+  total.iterations = call.iterations;
+  total.precision = call.precision;
+  total.formulation = call.formulation;
+  total.accuracy = call.accuracy;
+  total.threads = call.threads;
+}
+
 }  // namespace pwcontact

@@ -229,6 +229,11 @@ BatchReport contact_function_batch(const PairBatchView<float>& pairs,
                                    const ContactOutputs<float>& out,
                                    const BatchOptions& options = {});
 
+// Adds the report of one call to `total`, for callers that split a batch
+// into several calls: counts summed, mean_evaluations weighted by pairs, the
+// settings (isa, precision, ...) as the call's.
+void add_report(BatchReport& total, const BatchReport& call);
+
 // Overlap only: whether mu < cutoff for every pair, decided with certificates
 // so that most pairs need few or no Newton evaluations: before any, the
 // radial extents along r12 bound mu^2 from above (they lie inside both

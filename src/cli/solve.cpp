@@ -196,24 +196,7 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
 
 template <class T>
 void add_block(Solution<T>& total, const Solution<T>& block) {
-  BatchReport& t = total.report;
-  const BatchReport& b = block.report;
-  const double evaluations =
-      t.mean_evaluations * double(t.pairs) + b.mean_evaluations * double(b.pairs);
-  t.pairs += b.pairs;
-  t.fallbacks += b.fallbacks;
-  t.invalid += b.invalid;
-  for (int s = 0; s < status_count; ++s) t.status_counts[s] += b.status_counts[s];
-  t.decided_by_prefilter += b.decided_by_prefilter;
-  t.decided_by_certificate += b.decided_by_certificate;
-  t.overlapping += b.overlapping;
-  t.mean_evaluations = t.pairs ? evaluations / double(t.pairs) : 0;
-  t.isa = b.isa;
-  t.iterations = b.iterations;
-  t.precision = b.precision;
-  t.formulation = b.formulation;
-  t.accuracy = b.accuracy;
-  t.threads = b.threads;
+  add_report(total.report, block.report);
   total.request = block.request;
   total.accuracy = block.accuracy;
   total.reference_path = block.reference_path;

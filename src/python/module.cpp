@@ -77,6 +77,25 @@ Rows<T> rows_of(const py::handle& object, int k, const char* name) {
   return r;
 }
 
+// Quaternions (N, 4) or (4,), or the identity for all when none are given.
+Rows<double> orientation_rows(const py::object& orientations) {
+  static const double identity[4] = {1, 0, 0, 0};
+  if (!orientations.is_none()) return rows_of<double>(orientations, 4, "orientations");
+  Rows<double> r;
+  r.data = identity;
+  r.rows = 1;
+  r.broadcast = true;
+  return r;
+}
+
+// Throws unless `a` is broadcast or has n rows, as the positions have.
+template <class T>
+void expect_rows(const Rows<T>& a, std::size_t n, const char* name) {
+  if (!a.broadcast && a.rows != n)
+    throw py::value_error(std::string(name) + " has " + std::to_string(a.rows) + " rows, positions " +
+                          std::to_string(n));
+}
+
 // The common N of arrays of N rows or broadcast ones (N = 1 when all are).
 std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arrays,
                         std::initializer_list<const char*> names) {
@@ -147,36 +166,6 @@ Outputs parse_outputs(const std::vector<std::string>& names) {
   return o;
 }
 
-// Totals of a report over the chunks.
-struct Totals {
-  std::size_t pairs = 0, fallbacks = 0, invalid = 0, decided_by_prefilter = 0,
-              decided_by_certificate = 0, overlapping = 0;
-  double evaluations = 0;
-  std::string isa, precision;
-  void add(const pwcontact::BatchReport& r) {
-    Totals t;
-    t.pairs = r.pairs;
-    t.fallbacks = r.fallbacks;
-    t.invalid = r.invalid;
-    t.decided_by_prefilter = r.decided_by_prefilter;
-    t.decided_by_certificate = r.decided_by_certificate;
-    t.overlapping = r.overlapping;
-    t.evaluations = r.mean_evaluations * double(r.pairs);
-    t.isa = pwcontact::isa_name(r.isa);
-    t.precision = pwcontact::precision_name(r.precision);
-    merge(t);
-  }
-  void merge(const Totals& t) {
-    pairs += t.pairs;
-    fallbacks += t.fallbacks;
-    invalid += t.invalid;
-    decided_by_prefilter += t.decided_by_prefilter;
-    decided_by_certificate += t.decided_by_certificate;
-    overlapping += t.overlapping;
-    evaluations += t.evaluations;
-    if (isa.empty()) isa = t.isa, precision = t.precision;
-  }
-};
 
 // Columns [0, K) of rows [begin, begin + m) of `a` into out[0..K).
 template <int K, class T>
@@ -274,9 +263,9 @@ pwcontact::PairBatchView<T> direct(const Rows<T>& r12, const Rows<T>& q1, const 
 // chunk's pairs, begin, end, totals, threads for the call); or, where every
 // column is contiguous, once over all pairs with every thread.
 template <class T, class Body>
-Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t n,
+pwcontact::BatchReport over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t n,
                    int threads, Body&& body) {
-  Totals all;
+  pwcontact::BatchReport all;
   pwcontact::detail::ParallelErrors errors;
   const bool columns = columns_contiguous(r12) && columns_contiguous(q1) && columns_contiguous(q2);
   if (columns) {
@@ -289,7 +278,7 @@ Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std
 #pragma omp parallel num_threads(threads)
     {
       pwcontact::PairBatch<T> batch;
-      Totals mine;
+      pwcontact::BatchReport mine;
 #pragma omp for schedule(dynamic, 1)
       for (std::size_t c = 0; c < chunks; ++c)
         errors.run([&] {
@@ -297,21 +286,21 @@ Totals over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std
           body(gathered(r12, q1, q2, begin, end, batch), begin, end, mine, 1);
         });
 #pragma omp critical(pwcontact_python_totals)
-      all.merge(mine);
+      if (mine.pairs > 0) pwcontact::add_report(all, mine);  // (a thread without chunks has no settings)
     }
   }
   errors.rethrow_if_failed();
   return all;
 }
 
-py::dict report_dict(const Totals& t) {
+py::dict report_dict(const pwcontact::BatchReport& t) {
   py::dict d;
   d["pairs"] = t.pairs;
   d["fallbacks"] = t.fallbacks;
   d["invalid"] = t.invalid;
-  d["mean_evaluations"] = t.pairs ? t.evaluations / double(t.pairs) : 0.0;
-  d["isa"] = t.isa;
-  d["precision"] = t.precision;
+  d["mean_evaluations"] = t.mean_evaluations;
+  d["isa"] = pwcontact::isa_name(t.isa);
+  d["precision"] = pwcontact::precision_name(t.precision);
   return d;
 }
 
@@ -355,8 +344,8 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
   T* gradient_data = wanted.gradient ? gradient.mutable_data() : nullptr;
   const T* start_data = warm ? lambda_start.data() : nullptr;
   const int used = thread_count(threads);
-  Totals totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatchView<T> view, std::size_t begin,
-                                                        std::size_t end, Totals& mine, int call_threads) {
+  pwcontact::BatchReport totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatchView<T> view, std::size_t begin,
+                                                        std::size_t end, pwcontact::BatchReport& mine, int call_threads) {
     pwcontact::BatchOptions call_options = options;
     call_options.threads = call_threads;
     if (start_data) view.lambda_start = start_data + begin;
@@ -370,7 +359,7 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
       if (gradient_data) out.gradient[k] = gradient_data + k * n + begin;
     }
     const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, call_options);
-    mine.add(r);
+    pwcontact::add_report(mine, r);
     (void)end;
   });
   py::dict result;
@@ -415,14 +404,14 @@ py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const 
   py::array_t<std::uint8_t> status{py::ssize_t(n)};
   auto* overlap_data = reinterpret_cast<std::uint8_t*>(overlap.mutable_data());
   auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
-  Totals totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatchView<T> view,
+  pwcontact::BatchReport totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatchView<T> view,
                                                                         std::size_t begin, std::size_t,
-                                                                        Totals& mine, int call_threads) {
+                                                                        pwcontact::BatchReport& mine, int call_threads) {
     pwcontact::BatchOptions call_options = options;
     call_options.threads = call_threads;
     const pwcontact::BatchReport r = pwcontact::overlap_batch(
         view, {overlap_data + begin, status_data + begin}, call_options, cutoff);
-    mine.add(r);
+    pwcontact::add_report(mine, r);
   });
   py::dict result;
   result["overlap"] = overlap;
@@ -499,79 +488,53 @@ pwcontact::ParticleStore make_store(const py::object& positions_in, const py::ob
   if (positions.broadcast) throw py::value_error("positions must have shape (N, 3)");
   const std::size_t n = positions.rows;
   pwcontact::ParticleStore store;
-  const double identity[4] = {1, 0, 0, 0};
-  Rows<double> orientations;
-  if (!orientations_in.is_none()) {
-    orientations = rows_of<double>(orientations_in, 4, "orientations");
-    if (!orientations.broadcast && orientations.rows != n)
-      throw py::value_error("orientations has " + std::to_string(orientations.rows) + " rows, positions " +
-                            std::to_string(n));
-  } else {
-    orientations.data = identity;
-    orientations.rows = 1;
-    orientations.broadcast = true;
-  }
+  const Rows<double> orientations = orientation_rows(orientations_in);
+  expect_rows(orientations, n, "orientations");
   const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none()) + int(!type_semi_axes_in.is_none());
   if (given != 1)
-    throw py::value_error("give the shapes one way: semi_axes, q, or type_semi_axes with type_id");
+    throw py::value_error("give the shapes one way: semi_axes, q, or type_semi_axes with typeid");
+  auto centre = [&](std::size_t i) {
+    return std::array<double, 3>{positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)};
+  };
+  auto quaternion = [&](std::size_t i) {
+    return std::array<double, 4>{orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
+                                 orientations.at(i, 3)};
+  };
+  // Every particle set by `set(i)`, over the threads, without the GIL.
   pwcontact::detail::ParallelErrors errors;
-  if (!q_in.is_none()) {
-    const Rows<double> q = rows_of<double>(q_in, 6, "q");
-    if (!q.broadcast && q.rows != n)
-      throw py::value_error("q has " + std::to_string(q.rows) + " rows, positions " + std::to_string(n));
+  auto fill = [&](auto&& set) {
     py::gil_scoped_release release;
     store.resize(n);
 #pragma omp parallel for num_threads(threads) schedule(static)
-    for (std::size_t i = 0; i < n; ++i)
-      errors.run([&] {
-        store.set(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)},
-                  {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3), q.at(i, 4), q.at(i, 5)});
-      });
+    for (std::size_t i = 0; i < n; ++i) errors.run([&] { set(i); });
+  };
+  if (!q_in.is_none()) {
+    const Rows<double> q = rows_of<double>(q_in, 6, "q");
+    expect_rows(q, n, "q");
+    fill([&](std::size_t i) {
+      store.set(i, centre(i), {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3), q.at(i, 4), q.at(i, 5)});
+    });
   } else if (!semi_axes_in.is_none()) {
     const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
-    if (!axes.broadcast && axes.rows != n)
-      throw py::value_error("semi_axes has " + std::to_string(axes.rows) + " rows, positions " + std::to_string(n));
+    expect_rows(axes, n, "semi_axes");
     if (axes.broadcast) {
       // One shape for all: a type, so that the scene is searched as identical shapes.
       const std::uint32_t type = store.add_type({axes.at(0, 0), axes.at(0, 1), axes.at(0, 2)});
-      py::gil_scoped_release release;
-      store.resize(n);
-#pragma omp parallel for num_threads(threads) schedule(static)
-      for (std::size_t i = 0; i < n; ++i)
-        errors.run([&] {
-          store.set_typed(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)}, type,
-                          {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
-                           orientations.at(i, 3)});
-        });
+      fill([&](std::size_t i) { store.set_typed(i, centre(i), type, quaternion(i)); });
     } else {
-      py::gil_scoped_release release;
-      store.resize(n);
-#pragma omp parallel for num_threads(threads) schedule(static)
-      for (std::size_t i = 0; i < n; ++i)
-        errors.run([&] {
-          store.set_axes(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)},
-                         {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)},
-                         {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
-                          orientations.at(i, 3)});
-        });
+      fill([&](std::size_t i) {
+        store.set_axes(i, centre(i), {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)}, quaternion(i));
+      });
     }
   } else {
-    if (typeid_in.is_none()) throw py::value_error("type_semi_axes needs type_id");
+    if (typeid_in.is_none()) throw py::value_error("type_semi_axes needs typeid");
     const Rows<double> types = rows_of<double>(type_semi_axes_in, 3, "type_semi_axes");
     for (std::size_t t = 0; t < types.rows; ++t) store.add_type({types.at(t, 0), types.at(t, 1), types.at(t, 2)});
     auto typeid_array = py::array_t<std::uint32_t, py::array::forcecast>::ensure(typeid_in);
     if (!typeid_array || typeid_array.ndim() != 1 || std::size_t(typeid_array.shape(0)) != n)
-      throw py::value_error("type_id must have shape (" + std::to_string(n) + ",)");
+      throw py::value_error("typeid must have shape (" + std::to_string(n) + ",)");
     const auto typeid_view = typeid_array.unchecked<1>();
-    py::gil_scoped_release release;
-    store.resize(n);
-#pragma omp parallel for num_threads(threads) schedule(static)
-    for (std::size_t i = 0; i < n; ++i)
-      errors.run([&] {
-        store.set_typed(i, {positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)}, typeid_view(i),
-                        {orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
-                         orientations.at(i, 3)});
-      });
+    fill([&](std::size_t i) { store.set_typed(i, centre(i), typeid_view(i), quaternion(i)); });
   }
   errors.rethrow_if_failed();
   return store;
@@ -693,7 +656,7 @@ class PyMovingScene {
     const std::array<double, 4> o =
         orientation.is_none() ? std::array<double, 4>{1, 0, 0, 0} : orientation.cast<std::array<double, 4>>();
     const int given = int(!semi_axes.is_none()) + int(!q.is_none()) + int(!type_id.is_none());
-    if (given != 1) throw py::value_error("give the trial's shape one way: semi_axes, q or type_id");
+    if (given != 1) throw py::value_error("give the trial's shape one way: semi_axes, q or typeid");
     if (!q.is_none()) return scene_.trial(c, q.cast<std::array<double, 6>>());
     if (!semi_axes.is_none()) return scene_.trial_axes(c, semi_axes.cast<std::array<double, 3>>(), o);
     return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
@@ -710,12 +673,7 @@ class PyMovingScene {
     const std::size_t m = positions.broadcast ? 1 : positions.rows;
     const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none());
     if (given != 1) throw py::value_error("give the trials' shapes one way: semi_axes or q");
-    const double identity[4] = {1, 0, 0, 0};
-    Rows<double> orientations;
-    orientations.data = identity;
-    orientations.rows = 1;
-    orientations.broadcast = true;
-    if (!orientations_in.is_none()) orientations = rows_of<double>(orientations_in, 4, "orientations");
+    const Rows<double> orientations = orientation_rows(orientations_in);
     const Rows<double> shape = q_in.is_none() ? rows_of<double>(semi_axes_in, 3, "semi_axes")
                                               : rows_of<double>(q_in, 6, "q");
     common_rows({{positions.rows, positions.broadcast}, {orientations.rows, orientations.broadcast},
@@ -956,5 +914,4 @@ PYBIND11_MODULE(_pwcontact, m) {
       })
       .def("positions", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
       .def("q", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), true); });
-  m.attr("none") = pwcontact::MovingScene::none;
 }
