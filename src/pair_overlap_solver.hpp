@@ -23,7 +23,10 @@ class PairOverlapSolver {
 
   std::size_t capacity() const noexcept;
   // overlap[k] (and status[k]) for the pairs of the view, size at most the
-  // capacity: the answers overlap_batch gives for them, bit for bit.
+  // capacity: the answers overlap_batch gives for them (exact); under
+  // AVX-512, calls of 8 pairs or fewer run the AVX2 kernel (see batch.cpp),
+  // whose lanes may certify a pair that AVX-512's leave to the reference
+  // path, or the other way round (status ok or ok_fallback).
   void solve(const PairBatchView<double>& pairs, std::uint8_t* overlap, Status* status);
 
  private:

@@ -348,21 +348,44 @@ struct MovingScene::Impl {
                                       runs_within(2, u[2], reach)};
     const bool nearest_image =
         runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
-    const double trial_reach = cutoff * trial.bounding_radius();
+    // Copies, so that the scan's loop keeps them in registers (the visit
+    // writes through references the compiler cannot tell apart from them).
+    const double trial_reach = cutoff * trial.bounding_radius(), scale = cutoff;
+    const std::int64_t skip = exclude;
     const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
     // One cell's members, seen from `origin` (the trial's position less the
-    // image shift of the cell); false when the visit stops the search.
+    // image shift of the cell); false when the visit stops the search. The
+    // bounding spheres are tested 32 members at a time without a branch (a
+    // mask of the few that meet), then those few visited: on a packing at
+    // 0.5, 9 of 151 members scanned a query meet, and a branch per member
+    // cost 15 % of the query.
     auto scan = [&](std::size_t cell, const double origin[3]) {
       const Slot* s = slots.data() + cell * capacity;
       const std::uint32_t* m = members.data() + cell * capacity;
-      for (std::uint32_t k = 0, end = count[cell]; k < end; ++k) {
-        double r[3] = {s[k].position[0] - origin[0], s[k].position[1] - origin[1],
-                       s[k].position[2] - origin[2]};
-        if (nearest_image) geometry.minimum_image(r);
-        const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-        const double limit = trial_reach + cutoff * s[k].bounding;
-        if (rr >= limit * limit || std::int64_t(m[k]) == exclude) continue;
-        if (!visit(m[k], details[cell * capacity + k], s[k].bounding, r, rr)) return false;
+      const double ox = origin[0], oy = origin[1], oz = origin[2];
+      const std::uint32_t end = count[cell];
+      for (std::uint32_t first = 0; first < end; first += 32) {
+        const std::uint32_t last = std::min<std::uint32_t>(end, first + 32);
+        std::uint32_t meet = 0;
+        if (nearest_image) {
+          meet = last - first == 32 ? ~0u : (1u << (last - first)) - 1;  // tested below
+        } else {
+          for (std::uint32_t k = first; k < last; ++k) {
+            const double x = s[k].position[0] - ox, y = s[k].position[1] - oy,
+                         z = s[k].position[2] - oz;
+            const double limit = trial_reach + scale * s[k].bounding;
+            meet |= std::uint32_t(x * x + y * y + z * z < limit * limit) << (k - first);
+          }
+        }
+        for (; meet != 0; meet &= meet - 1) {
+          const std::uint32_t k = first + std::uint32_t(__builtin_ctz(meet));
+          double r[3] = {s[k].position[0] - ox, s[k].position[1] - oy, s[k].position[2] - oz};
+          if (nearest_image) geometry.minimum_image(r);
+          const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+          const double limit = trial_reach + scale * s[k].bounding;
+          if (rr >= limit * limit || std::int64_t(m[k]) == skip) continue;
+          if (!visit(m[k], details[cell * capacity + k], s[k].bounding, r, rr)) return false;
+        }
       }
       return true;
     };
