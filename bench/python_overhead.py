@@ -74,6 +74,15 @@ def main(argv=None):
         print(f"contact_function, {n} random pairs (mu2, lambda), {name}: python {py * 1e3:.1f} ms, "
               f"C++ {cpp * 1e3:.1f} ms: overhead {100 * over:+.1f} % (target <= 10 %: "
               f"{'met' if over <= 0.10 else 'NOT met'})")
+    # What the rows cost in C++ itself (the same arrays through a strided
+    # PairBatchView), against the binding on them: the layout's share and
+    # the binding's.
+    py, rows = median_pair(lambda: pw.contact_function(r12, q1, q2, threads=t, out=out),
+                           lambda: core._time_batch(r12, q1, q2, t, rows=True), args.repetitions)
+    cpp = statistics.median(core._time_batch(r12, q1, q2, t) for _ in range(args.repetitions))
+    print(f"  of which the layout: C++ on the same C-ordered rows (strided view) {rows * 1e3:.1f} ms, "
+          f"{100 * (rows / cpp - 1):+.1f} % over its columns ({cpp * 1e3:.1f} ms); the binding on the "
+          f"rows (out= reused) {py * 1e3:.1f} ms, {100 * (py / rows - 1):+.1f} % over C++ on them")
 
     scene = pw.spheroid_scene(args.particles, 1, 0.3, 3.0)
     box = scene["box"]._core()

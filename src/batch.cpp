@@ -82,6 +82,13 @@ void check_pairs(const PairBatchView<T>& pairs) {
   for (int k = 0; k < 6; ++k)
     if (!pairs.q1[k] || !pairs.q2[k])
       throw std::invalid_argument("PairBatchView::q1 or q2 has a null component");
+  // The gathers of a block offset by up to 15 strides in the kernels' index
+  // type (32 bits for float).
+  constexpr std::ptrdiff_t largest = std::ptrdiff_t(1) << 26;
+  for (std::ptrdiff_t stride : {pairs.r12_stride, pairs.q1_stride, pairs.q2_stride})
+    if (stride > largest || stride < -largest)
+      throw std::invalid_argument("PairBatchView: a stride of " + std::to_string(stride) +
+                                  " numbers is beyond +-2^26");
 }
 
 // Which optional outputs are asked for; a three-component output is all
@@ -112,10 +119,11 @@ struct ScalarPair {
 template <class T>
 ScalarPair scalar_pair(const PairBatchView<T>& pairs, std::size_t i) {
   ScalarPair p;
-  for (int k = 0; k < 3; ++k) p.r[k] = pairs.r12[k][i];
+  const std::ptrdiff_t at = std::ptrdiff_t(i);
+  for (int k = 0; k < 3; ++k) p.r[k] = pairs.r12[k][at * pairs.r12_stride];
   for (int k = 0; k < 6; ++k) {
-    p.q1[k] = pairs.q1[k][i];
-    p.q2[k] = pairs.q2[k][i];
+    p.q1[k] = pairs.q1[k][at * pairs.q1_stride];
+    p.q2[k] = pairs.q2[k][at * pairs.q2_stride];
   }
   return p;
 }
@@ -137,11 +145,15 @@ template <class T>
 kernels::PairSpan<T> span_at(const PairBatchView<T>& pairs, std::size_t begin) {
   kernels::PairSpan<T> in;
   in.lambda_start = pairs.lambda_start ? pairs.lambda_start + begin : nullptr;
-  for (int k = 0; k < 3; ++k) in.r12[k] = pairs.r12[k] + begin;
+  const std::ptrdiff_t at = std::ptrdiff_t(begin);
+  for (int k = 0; k < 3; ++k) in.r12[k] = pairs.r12[k] + at * pairs.r12_stride;
   for (int k = 0; k < 6; ++k) {
-    in.q1[k] = pairs.q1[k] + begin;
-    in.q2[k] = pairs.q2[k] + begin;
+    in.q1[k] = pairs.q1[k] + at * pairs.q1_stride;
+    in.q2[k] = pairs.q2[k] + at * pairs.q2_stride;
   }
+  in.stride[0] = pairs.r12_stride;
+  in.stride[1] = pairs.q1_stride;
+  in.stride[2] = pairs.q2_stride;
   return in;
 }
 

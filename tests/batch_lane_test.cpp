@@ -3,6 +3,10 @@
 // the report, the instruction-set override and the fallback.
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <type_traits>
 #include <stdexcept>
 
 #include "test_support.hpp"
@@ -416,6 +420,129 @@ TEST(BatchCall, NullMu2Throws) {
   std::vector<float> lambda_f(batch.size());
   EXPECT_THROW(pwcontact::contact_function_batch(
                    single.view(), ContactOutputs<float>{nullptr, lambda_f.data(), status.data()}),
+               std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------
+// Strided views (PairBatchView's strides): pairs read in place from an array
+// of structures (rows of 15 numbers), backwards (a negative stride), and one
+// form shared by every pair (stride 0) get the answers of the same pairs in
+// columns of their own, bit for bit: every output of the full answer, a warm
+// start, and the overlap answers, in every precision the type has. The
+// pairs include invalid ones (statuses) and the tail of a partial block.
+
+// Every output of contact_function_batch and overlap_batch, as bits.
+template <class T>
+struct AllOutputs {
+  std::vector<T> mu2, lambda, point, normal, gradient;
+  std::vector<Status> status, overlap_status;
+  std::vector<std::uint8_t> overlap;
+};
+
+template <class T>
+AllOutputs<T> solve_all(const pwcontact::PairBatchView<T>& view, const BatchOptions& options) {
+  const std::size_t n = view.size;
+  AllOutputs<T> o;
+  o.mu2.resize(n), o.lambda.resize(n), o.point.resize(3 * n), o.normal.resize(3 * n),
+      o.gradient.resize(3 * n), o.status.resize(n), o.overlap_status.resize(n), o.overlap.resize(n);
+  ContactOutputs<T> out{o.mu2.data(), o.lambda.data(), o.status.data()};
+  for (int k = 0; k < 3; ++k) {
+    out.contact_point[k] = o.point.data() + k * n;
+    out.normal[k] = o.normal.data() + k * n;
+    out.gradient[k] = o.gradient.data() + k * n;
+  }
+  pwcontact::contact_function_batch(view, out, options);
+  pwcontact::overlap_batch(view, {o.overlap.data(), o.overlap_status.data()}, options, 1.0);
+  return o;
+}
+
+template <class T>
+bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+template <class T>
+void expect_same_outputs(const AllOutputs<T>& a, const AllOutputs<T>& b, const std::string& what) {
+  EXPECT_TRUE(same_bits(a.mu2, b.mu2)) << what << ": mu2";
+  EXPECT_TRUE(same_bits(a.lambda, b.lambda)) << what << ": lambda";
+  EXPECT_TRUE(same_bits(a.point, b.point)) << what << ": contact_point";
+  EXPECT_TRUE(same_bits(a.normal, b.normal)) << what << ": normal";
+  EXPECT_TRUE(same_bits(a.gradient, b.gradient)) << what << ": gradient";
+  EXPECT_TRUE(same_bits(a.status, b.status)) << what << ": status";
+  EXPECT_TRUE(same_bits(a.overlap, b.overlap)) << what << ": overlap";
+  EXPECT_TRUE(same_bits(a.overlap_status, b.overlap_status)) << what << ": overlap status";
+}
+
+// The view of pairs stored as rows (Pair<T> is 15 contiguous numbers),
+// from pair `first` on, `step` rows from one pair to the next.
+template <class T>
+pwcontact::PairBatchView<T> rows_view(const std::vector<Pair<T>>& rows, std::size_t first,
+                                      std::ptrdiff_t step, std::size_t n) {
+  static_assert(sizeof(Pair<T>) == 15 * sizeof(T), "Pair<T> is 15 numbers side by side");
+  pwcontact::PairBatchView<T> v;
+  v.size = n;
+  for (int k = 0; k < 3; ++k) v.r12[k] = &rows[first].r12[std::size_t(k)];
+  for (int k = 0; k < 6; ++k) {
+    v.q1[k] = &rows[first].q1[std::size_t(k)];
+    v.q2[k] = &rows[first].q2[std::size_t(k)];
+  }
+  v.r12_stride = v.q1_stride = v.q2_stride = 15 * step;
+  return v;
+}
+
+template <class T>
+void expect_strided_views_match_columns(Isa isa) {
+  const std::size_t n = 1003;  // not a multiple of any block
+  std::vector<Pair<T>> rows = convert_all<T>(make_random_pairs(n, 41));
+  for (std::size_t i = 0; i < n; i += 97) rows[i].q1[0] = -1;  // invalid: statuses
+  rows[5].r12[2] = std::numeric_limits<T>::quiet_NaN();
+  std::vector<Pair<T>> reversed(rows.rbegin(), rows.rend());
+  std::vector<Pair<T>> shared = rows;  // every q2 the first pair's
+  for (Pair<T>& p : shared) p.q2 = rows[0].q2;
+  const PairBatch<T> columns = make_batch(rows), reversed_columns = make_batch(reversed),
+                     shared_columns = make_batch(shared);
+  std::vector<pwcontact::Precision> precisions = {pwcontact::Precision::automatic,
+                                                  pwcontact::Precision::single_precision};
+  if (std::is_same<T, double>::value) precisions.push_back(pwcontact::Precision::mixed);
+  for (pwcontact::Precision precision : precisions) {
+    const BatchOptions options = with_precision(with_isa(isa, 0, 1), precision);
+    const std::string name = std::string(pwcontact::isa_name(isa)) + ", precision " +
+                             std::to_string(int(precision));
+    const AllOutputs<T> expected = solve_all(columns.view(), options);
+    expect_same_outputs(solve_all(rows_view(rows, 0, 1, n), options), expected, name + ", rows");
+    expect_same_outputs(solve_all(rows_view(reversed, n - 1, -1, n), options), expected,
+                        name + ", rows read backwards");
+    pwcontact::PairBatchView<T> broadcast = shared_columns.view();
+    for (int k = 0; k < 6; ++k) broadcast.q2[k] = &rows[0].q2[std::size_t(k)];
+    broadcast.q2_stride = 0;
+    expect_same_outputs(solve_all(broadcast, options), solve_all(shared_columns.view(), options),
+                        name + ", one q2 for every pair");
+    (void)reversed_columns;
+  }
+  // A warm start read beside strided pairs.
+  std::vector<T> start(n);
+  for (std::size_t i = 0; i < n; ++i) start[i] = T(0.05 + 0.9 * double(i % 17) / 16);
+  pwcontact::PairBatchView<T> warm_columns = columns.view(), warm_rows = rows_view(rows, 0, 1, n);
+  warm_columns.lambda_start = warm_rows.lambda_start = start.data();
+  expect_same_outputs(solve_all(warm_rows, with_isa(isa, 0, 1)),
+                      solve_all(warm_columns, with_isa(isa, 0, 1)),
+                      std::string(pwcontact::isa_name(isa)) + ", warm start");
+}
+
+TEST_P(BatchLanes, StridedViewsGiveTheAnswersOfColumnsBitForBitInDouble) {
+  expect_strided_views_match_columns<double>(GetParam());
+}
+
+TEST_P(BatchLanes, StridedViewsGiveTheAnswersOfColumnsBitForBitInFloat) {
+  expect_strided_views_match_columns<float>(GetParam());
+}
+
+TEST(BatchCall, StridesBeyondTheGathersReachThrow) {
+  const PairBatch<double> batch = make_batch(make_random_pairs(10, 31));
+  pwcontact::PairBatchView<double> view = batch.view();
+  view.q1_stride = std::ptrdiff_t(1) << 27;
+  std::vector<double> mu2(batch.size());
+  EXPECT_THROW(pwcontact::contact_function_batch(view, ContactOutputs<double>{mu2.data()}),
                std::invalid_argument);
 }
 

@@ -60,6 +60,14 @@ struct PairBatchView {
   // Used by the double-precision kernels (and float ones on float pairs);
   // the answer's accuracy does not depend on it, only the evaluations.
   const T* lambda_start = nullptr;
+  // Numbers from one pair to the next in each array of r12, of q1 and of q2
+  // (lambda_start is always contiguous): 1 for columns of their own (the
+  // structure-of-arrays layout, read fastest), 3 and 6 for the rows of
+  // C-ordered (N, 3) and (N, 6) arrays (component k of pair i at
+  // r12[k][3 i]: r12[k] = data + k), 0 for one vector or form shared by
+  // every pair, negative for arrays read backwards. Strides other than 1
+  // are read by gathers, in place: the answers are the same, bit for bit.
+  std::ptrdiff_t r12_stride = 1, q1_stride = 1, q2_stride = 1;
 };
 
 // Where the results go, `size` elements each. mu2 is required; everything

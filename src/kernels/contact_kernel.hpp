@@ -147,7 +147,7 @@ void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status
   for (std::size_t i = 0; i < n; ++i) {
     if (status[i] != needs_fallback || !(state.lambda[i] == state.lambda[i])) continue;
     In v[pair_components];
-    for (int k = 0; k < pair_components; ++k) v[k] = component(in, k)[i];
+    for (int k = 0; k < pair_components; ++k) v[k] = element(in, k, i);
     static constexpr int diagonals[6] = {3, 6, 8, 9, 12, 14};
     In largest = v[3];
     for (int k : diagonals) largest = v[k] > largest ? v[k] : largest;

@@ -11,13 +11,16 @@
 
 namespace pwcontact::kernels {
 
-// SoA input, pointers already offset to the first pair of the span.
+// Input, pointers already offset to the first pair of the span; component
+// k of pair i at r12[k][i * stride[0]], q1[k][i * stride[1]],
+// q2[k][i * stride[2]] (PairBatchView's strides).
 template <class T>
 struct PairSpan {
   const T* r12[3];
   const T* q1[6];
   const T* q2[6];
-  const T* lambda_start = nullptr;  // optional: where the full kernels start (PairBatchView)
+  const T* lambda_start = nullptr;  // optional: where the full kernels start (contiguous)
+  std::ptrdiff_t stride[3] = {1, 1, 1};
 };
 
 // Which optional outputs a full-answer kernel computes: the kernels are

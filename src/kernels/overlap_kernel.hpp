@@ -354,7 +354,7 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
   for (std::size_t i = 0; i < n; ++i) {
     if (status[i] != needs_fallback) continue;
     for (int k = 0; k < pair_components; ++k)
-      gathered[std::size_t(k) * stride + count] = double(component(in, k)[i]);
+      gathered[std::size_t(k) * stride + count] = double(element(in, k, i));
     positions[count++] = std::uint32_t(i);
   }
   PairSpan<double> span;

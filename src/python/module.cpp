@@ -3,13 +3,10 @@
 // (python/pwcontact/__init__.py) wraps it with the Box convention, GSD
 // reading through python3-gsd and the docstrings users see.
 //
-// Arrays are taken as they are, whatever their strides (a row of r12 may be
-// 0 apart: one pair's numbers broadcast against many), and converted only
-// when their dtype is not the one computed in (numpy makes that copy). The
-// batch calls read structure-of-arrays pairs, so the pairs are gathered a
-// chunk at a time (in cache) over the threads and solved there: the answers
-// do not depend on a pair's position in a batch nor on the thread count, so
-// chunking changes none of them.
+// Arrays are read in place, whatever their strides (PairBatchView's strides:
+// rows of C-ordered arrays by gathers, columns of Fortran-ordered ones by
+// plain loads, a row broadcast against many with stride 0), and converted
+// only when their dtype is not the one computed in (numpy makes that copy).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -59,6 +56,15 @@ template <class T>
 Rows<T> rows_of(const py::handle& object, int k, const char* name) {
   auto a = py::array_t<T, py::array::forcecast>::ensure(object);
   if (!a) throw py::value_error(std::string(name) + " must be an array of numbers");
+  // Strides the batch calls cannot read in place (not whole numbers, or
+  // beyond their gathers' +-2^26 numbers): a C-ordered copy.
+  constexpr py::ssize_t reach = py::ssize_t(1) << 26;
+  for (py::ssize_t d = 0; d < a.ndim(); ++d)
+    if (a.strides(d) % py::ssize_t(sizeof(T)) != 0 || a.strides(d) / py::ssize_t(sizeof(T)) > reach ||
+        a.strides(d) / py::ssize_t(sizeof(T)) < -reach) {
+      a = py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
+      break;
+    }
   Rows<T> r;
   if (a.ndim() == 1 && a.shape(0) == k) {
     r.rows = 1;
@@ -144,8 +150,6 @@ pwcontact::BatchOptions batch_options(const std::string& precision, const py::ob
   return o;
 }
 
-constexpr std::size_t chunk_pairs = 2048;
-
 struct Outputs {
   bool mu2 = true, lambda = false, contact_point = false, normal = false, gradient = false;
 };
@@ -167,39 +171,6 @@ Outputs parse_outputs(const std::vector<std::string>& names) {
 }
 
 
-// Columns [0, K) of rows [begin, begin + m) of `a` into out[0..K).
-template <int K, class T>
-void copy_columns(const Rows<T>& a, std::size_t begin, std::size_t m, T* const* out) {
-  if (a.broadcast) {
-    for (int k = 0; k < K; ++k) std::fill(out[k], out[k] + m, a.at(0, k));
-  } else if (a.column_stride == 1) {
-    // Rows of K contiguous numbers (a C-contiguous (N, K) array, or rows
-    // of a wider one): the transpose, unrolled over the K columns.
-    // (Column pointers in locals, restrict: else every store could alias
-    // the pointer array and each pointer is reloaded per number.)
-    const T* __restrict row = a.data + std::ptrdiff_t(begin) * a.row_stride;
-    const std::ptrdiff_t stride = a.row_stride;
-    T* __restrict column[K];
-    for (int k = 0; k < K; ++k) column[k] = out[k];
-    // Eight rows at a time through a small block, so that each column is
-    // written a cache line at a time (measured: 12.5 ns a pair from memory,
-    // 15 row by row, for the 15 numbers of a pair).
-    std::size_t p = 0;
-    for (; p + 8 <= m; p += 8) {
-      T block[K][8];
-      for (int i = 0; i < 8; ++i)
-        for (int k = 0; k < K; ++k) block[k][i] = row[std::ptrdiff_t(p + i) * stride + k];
-      for (int k = 0; k < K; ++k)
-        for (int i = 0; i < 8; ++i) column[k][p + i] = block[k][i];
-    }
-    for (; p < m; ++p)
-      for (int k = 0; k < K; ++k) column[k][p] = row[std::ptrdiff_t(p) * stride + k];
-  } else {
-    for (int k = 0; k < K; ++k)
-      for (std::size_t p = 0; p < m; ++p) out[k][p] = a.at(begin + p, k);
-  }
-}
-
 // An output array of n elements: the caller's (out[key], which must be a
 // writeable C-contiguous array of shape (n,) and of the result's dtype), or
 // a new one.
@@ -220,77 +191,34 @@ py::array_t<T> output_array(const py::object& out, const char* key, std::size_t 
   return py::reinterpret_borrow<py::array_t<T>>(given);
 }
 
-// Pairs [begin, end) gathered into `batch` (resized to end - begin).
+// The pairs where the caller's arrays hold them: component k of pair i at
+// data + i * row_stride + k * column_stride (row_stride 0 for a row
+// broadcast against every pair).
 template <class T>
-pwcontact::PairBatchView<T> gathered(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2,
-                                     std::size_t begin, std::size_t end, pwcontact::PairBatch<T>& batch) {
-  const std::size_t m = end - begin;
-  batch.resize(m);
-  T* r[3];
-  T* a[6];
-  T* b[6];
-  for (int k = 0; k < 3; ++k) r[k] = batch.r12(k).data();
-  for (int k = 0; k < 6; ++k) a[k] = batch.q1(k).data(), b[k] = batch.q2(k).data();
-  copy_columns<3>(r12, begin, m, r);
-  copy_columns<6>(q1, begin, m, a);
-  copy_columns<6>(q2, begin, m, b);
-  return batch.view();
-}
-
-// Whether every column is contiguous (a Fortran-ordered (N, k) array, or the
-// transpose of a C-ordered (k, N) one): the batch calls then read the
-// caller's memory as it is, with no gather.
-template <class T>
-bool columns_contiguous(const Rows<T>& a) {
-  return !a.broadcast && (a.row_stride == 1 || a.rows <= 1);
-}
-
-// Pairs [begin, end) in place, for columns_contiguous arrays.
-template <class T>
-pwcontact::PairBatchView<T> direct(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2,
-                                   std::size_t begin, std::size_t end) {
+pwcontact::PairBatchView<T> view_of(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2,
+                                    std::size_t n) {
   pwcontact::PairBatchView<T> view;
-  view.size = end - begin;
-  for (int k = 0; k < 3; ++k) view.r12[k] = r12.data + k * r12.column_stride + std::ptrdiff_t(begin);
+  view.size = n;
+  for (int k = 0; k < 3; ++k) view.r12[k] = r12.data + k * r12.column_stride;
   for (int k = 0; k < 6; ++k) {
-    view.q1[k] = q1.data + k * q1.column_stride + std::ptrdiff_t(begin);
-    view.q2[k] = q2.data + k * q2.column_stride + std::ptrdiff_t(begin);
+    view.q1[k] = q1.data + k * q1.column_stride;
+    view.q2[k] = q2.data + k * q2.column_stride;
   }
+  view.r12_stride = r12.broadcast ? 0 : r12.row_stride;
+  view.q1_stride = q1.broadcast ? 0 : q1.row_stride;
+  view.q2_stride = q2.broadcast ? 0 : q2.row_stride;
   return view;
 }
 
-// Over chunks of pairs, in parallel, with the GIL released: body(the
-// chunk's pairs, begin, end, totals, threads for the call); or, where every
-// column is contiguous, once over all pairs with every thread.
-template <class T, class Body>
-pwcontact::BatchReport over_chunks(const Rows<T>& r12, const Rows<T>& q1, const Rows<T>& q2, std::size_t n,
-                   int threads, Body&& body) {
-  pwcontact::BatchReport all;
+// solve() with the GIL released, a C++ exception kept for the caller's thread.
+template <class Solve>
+void without_gil(Solve&& solve) {
   pwcontact::detail::ParallelErrors errors;
-  const bool columns = columns_contiguous(r12) && columns_contiguous(q1) && columns_contiguous(q2);
-  if (columns) {
-    // The caller's columns as they are: one call, the library's own threads.
+  {
     py::gil_scoped_release release;
-    errors.run([&] { body(direct(r12, q1, q2, 0, n), std::size_t(0), n, all, threads); });
-  } else {
-    py::gil_scoped_release release;
-    const std::size_t chunks = (n + chunk_pairs - 1) / chunk_pairs;
-#pragma omp parallel num_threads(threads)
-    {
-      pwcontact::PairBatch<T> batch;
-      pwcontact::BatchReport mine;
-#pragma omp for schedule(dynamic, 1)
-      for (std::size_t c = 0; c < chunks; ++c)
-        errors.run([&] {
-          const std::size_t begin = c * chunk_pairs, end = std::min(n, begin + chunk_pairs);
-          body(gathered(r12, q1, q2, begin, end, batch), begin, end, mine, 1);
-        });
-#pragma omp critical(pwcontact_python_totals)
-      if (mine.pairs > 0) pwcontact::add_report(all, mine);  // (a thread without chunks has no settings)
-    }
+    errors.run(solve);
   }
   errors.rethrow_if_failed();
-  return all;
 }
 
 py::dict report_dict(const pwcontact::BatchReport& t) {
@@ -336,32 +264,20 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
   if (wanted.contact_point) point = vectors<T>(n);
   if (wanted.normal) normal = vectors<T>(n);
   if (wanted.gradient) gradient = vectors<T>(n);
-  T* mu2_data = mu2.mutable_data();
-  T* lambda_data = wanted.lambda ? lambda.mutable_data() : nullptr;
-  auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
-  T* point_data = wanted.contact_point ? point.mutable_data() : nullptr;
-  T* normal_data = wanted.normal ? normal.mutable_data() : nullptr;
-  T* gradient_data = wanted.gradient ? gradient.mutable_data() : nullptr;
-  const T* start_data = warm ? lambda_start.data() : nullptr;
-  const int used = thread_count(threads);
-  pwcontact::BatchReport totals = over_chunks<T>(r12, q1, q2, n, used, [&](pwcontact::PairBatchView<T> view, std::size_t begin,
-                                                        std::size_t end, pwcontact::BatchReport& mine, int call_threads) {
-    pwcontact::BatchOptions call_options = options;
-    call_options.threads = call_threads;
-    if (start_data) view.lambda_start = start_data + begin;
-    pwcontact::ContactOutputs<T> out;
-    out.mu2 = mu2_data + begin;
-    out.lambda = lambda_data ? lambda_data + begin : nullptr;
-    out.status = status_data + begin;
-    for (int k = 0; k < 3; ++k) {
-      if (point_data) out.contact_point[k] = point_data + k * n + begin;
-      if (normal_data) out.normal[k] = normal_data + k * n + begin;
-      if (gradient_data) out.gradient[k] = gradient_data + k * n + begin;
-    }
-    const pwcontact::BatchReport r = pwcontact::contact_function_batch(view, out, call_options);
-    pwcontact::add_report(mine, r);
-    (void)end;
-  });
+  pwcontact::PairBatchView<T> view = view_of(r12, q1, q2, n);
+  view.lambda_start = warm ? lambda_start.data() : nullptr;
+  pwcontact::ContactOutputs<T> outputs;
+  outputs.mu2 = mu2.mutable_data();
+  outputs.lambda = wanted.lambda ? lambda.mutable_data() : nullptr;
+  outputs.status = reinterpret_cast<Status*>(status.mutable_data());
+  for (int k = 0; k < 3; ++k) {
+    if (wanted.contact_point) outputs.contact_point[k] = point.mutable_data() + k * n;
+    if (wanted.normal) outputs.normal[k] = normal.mutable_data() + k * n;
+    if (wanted.gradient) outputs.gradient[k] = gradient.mutable_data() + k * n;
+  }
+  options.threads = thread_count(threads);
+  pwcontact::BatchReport totals;
+  without_gil([&] { totals = pwcontact::contact_function_batch(view, outputs, options); });
   py::dict result;
   if (wanted.mu2) result["mu2"] = mu2;
   if (wanted.lambda) result["lambda"] = lambda;
@@ -402,17 +318,11 @@ py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const 
                                     {"r12", "q1", "q2"});
   py::array_t<bool> overlap{py::ssize_t(n)};
   py::array_t<std::uint8_t> status{py::ssize_t(n)};
-  auto* overlap_data = reinterpret_cast<std::uint8_t*>(overlap.mutable_data());
-  auto* status_data = reinterpret_cast<Status*>(status.mutable_data());
-  pwcontact::BatchReport totals = over_chunks<T>(r12, q1, q2, n, thread_count(threads), [&](pwcontact::PairBatchView<T> view,
-                                                                        std::size_t begin, std::size_t,
-                                                                        pwcontact::BatchReport& mine, int call_threads) {
-    pwcontact::BatchOptions call_options = options;
-    call_options.threads = call_threads;
-    const pwcontact::BatchReport r = pwcontact::overlap_batch(
-        view, {overlap_data + begin, status_data + begin}, call_options, cutoff);
-    pwcontact::add_report(mine, r);
-  });
+  const pwcontact::OverlapOutputs outputs{reinterpret_cast<std::uint8_t*>(overlap.mutable_data()),
+                                          reinterpret_cast<Status*>(status.mutable_data())};
+  options.threads = thread_count(threads);
+  pwcontact::BatchReport totals;
+  without_gil([&] { totals = pwcontact::overlap_batch(view_of(r12, q1, q2, n), outputs, options, cutoff); });
   py::dict result;
   result["overlap"] = overlap;
   result["status"] = status;
@@ -706,17 +616,28 @@ double now_seconds() { return omp_get_wtime(); }
 
 double time_batch(const py::array_t<double, py::array::c_style | py::array::forcecast>& r12,
                   const py::array_t<double, py::array::c_style | py::array::forcecast>& q1,
-                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q2, int threads) {
+                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q2, int threads,
+                  bool rows) {
   const std::size_t n = std::size_t(r12.shape(0));
-  pwcontact::PairBatch<double> batch(n);
-  for (std::size_t i = 0; i < n; ++i) batch.set(i, r12.data() + 3 * i, q1.data() + 6 * i, q2.data() + 6 * i);
+  pwcontact::PairBatch<double> batch(rows ? 0 : n);
+  pwcontact::PairBatchView<double> view;
+  if (rows) {  // the C-ordered arrays in place (strided view)
+    view.size = n;
+    for (int k = 0; k < 3; ++k) view.r12[k] = r12.data() + k;
+    for (int k = 0; k < 6; ++k) view.q1[k] = q1.data() + k, view.q2[k] = q2.data() + k;
+    view.r12_stride = 3;
+    view.q1_stride = view.q2_stride = 6;
+  } else {  // columns of their own
+    for (std::size_t i = 0; i < n; ++i) batch.set(i, r12.data() + 3 * i, q1.data() + 6 * i, q2.data() + 6 * i);
+    view = batch.view();
+  }
   std::vector<double> mu2(n), lambda(n);
   std::vector<Status> status(n);
   pwcontact::BatchOptions options;
   options.threads = thread_count(threads);
   py::gil_scoped_release release;
   const double start = now_seconds();
-  pwcontact::contact_function_batch(batch.view(), {mu2.data(), lambda.data(), status.data()}, options);
+  pwcontact::contact_function_batch(view, {mu2.data(), lambda.data(), status.data()}, options);
   return now_seconds() - start;
 }
 
@@ -817,7 +738,8 @@ PYBIND11_MODULE(_pwcontact, m) {
     const pwcontact::ContactResult<double> r = pwcontact::contact_function<double>(r12.data(), q1.data(), q2.data());
     return py::make_tuple(r.mu2, r.lambda, int(r.status));
   }, py::arg("r12"), py::arg("q1"), py::arg("q2"));
-  m.def("_time_batch", &time_batch);
+  m.def("_time_batch", &time_batch, py::arg("r12"), py::arg("q1"), py::arg("q2"), py::arg("threads"),
+        py::arg("rows") = false);
   m.def("_time_screen", &time_screen);
   m.def("status_names", [] {
     std::vector<std::pair<std::string, std::string>> names;
