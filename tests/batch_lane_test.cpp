@@ -512,6 +512,20 @@ void expect_strided_views_match_columns(Isa isa) {
     expect_same_outputs(solve_all(rows_view(rows, 0, 1, n), options), expected, name + ", rows");
     expect_same_outputs(solve_all(rows_view(reversed, n - 1, -1, n), options), expected,
                         name + ", rows read backwards");
+    // Packed rows, as C-ordered (N, 3) and (N, 6) arrays hold them (AVX-512
+    // reads 8 double rows by shuffles, not gathers).
+    std::vector<T> r(3 * n), a(6 * n), b(6 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t k = 0; k < 3; ++k) r[3 * i + k] = rows[i].r12[k];
+      for (std::size_t k = 0; k < 6; ++k) a[6 * i + k] = rows[i].q1[k], b[6 * i + k] = rows[i].q2[k];
+    }
+    pwcontact::PairBatchView<T> packed;
+    packed.size = n;
+    for (int k = 0; k < 3; ++k) packed.r12[k] = r.data() + k;
+    for (int k = 0; k < 6; ++k) packed.q1[k] = a.data() + k, packed.q2[k] = b.data() + k;
+    packed.r12_stride = 3;
+    packed.q1_stride = packed.q2_stride = 6;
+    expect_same_outputs(solve_all(packed, options), expected, name + ", packed rows of 3 and 6");
     pwcontact::PairBatchView<T> broadcast = shared_columns.view();
     for (int k = 0; k < 6; ++k) broadcast.q2[k] = &rows[0].q2[std::size_t(k)];
     broadcast.q2_stride = 0;
