@@ -3,11 +3,11 @@
 // lane, with safeguarded Newton iterations.
 //
 // This body is written once and compiled once per instruction set, each time
-// in its own translation unit with its own flags (contact_sse2.cpp, ...).
-// Every function here is a template on the xsimd architecture tag, so the
-// copies compiled with different flags are distinct symbols and none can
-// replace another at link time. Nothing here calls into non-template inline
-// code of the library or the standard library for the same reason.
+// in its own translation unit with its own flags (contact_sse2.cpp, ...),
+// inside that target's namespace (target.hpp), so that the copies compiled
+// with different flags are distinct symbols and none can replace another at
+// link time; the test kernels.targets_share_no_definitions checks the
+// objects.
 //
 // A chunk is solved in passes. The first pass loads every pair, checks it,
 // nondimensionalises it, takes the initial guess and runs a few evaluations;
@@ -17,6 +17,8 @@
 // the reference path (fixed iterations). Lanes step together and diverge
 // only through select. Equation numbers refer to shared/seed/theory.txt.
 #pragma once
+
+#include "kernels/target.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -28,7 +30,7 @@
 #include "kernels/lane_blocks.hpp"
 #include "kernels/simd_math.hpp"
 
-namespace pwcontact::kernels {
+namespace pwcontact::kernels::PWCONTACT_TARGET {
 
 // Evaluations of the first pass in automatic mode, by measurement on the
 // random family: after 3 (double) or 2 (float) the convergence check passes
@@ -140,7 +142,6 @@ struct StateByPosition {
 // Packs the lanes the first pass left unfinished (status needs_fallback,
 // lambda not NaN) into the kept lanes: the pair, nondimensionalised in its
 // own type before any narrowing (as load_pairs does), the scale and the state.
-// Templated on Arch although it uses no SIMD: see the file's header.
 template <class Arch, class T, class In>
 void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status,
                      const StateByPosition<T>& state, FullKept<T>& kept) {
@@ -585,4 +586,4 @@ void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out,
   }
 }
 
-}  // namespace pwcontact::kernels
+}  // namespace pwcontact::kernels::PWCONTACT_TARGET

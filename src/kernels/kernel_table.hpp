@@ -1,5 +1,6 @@
-// Defines the KernelTable of one instruction set from the kernel bodies; used
-// once in each per-ISA translation unit (contact_sse2.cpp, ...).
+// Defines the KernelTable of one instruction set from the kernel bodies of
+// its target namespace (target.hpp); used once in each per-target
+// translation unit (contact_sse2.cpp, ...), after it defines PWCONTACT_TARGET.
 #pragma once
 
 #include "kernels/contact_kernel.hpp"
@@ -11,13 +12,13 @@
       label,                                                                               \
       int(xsimd::batch<double, arch>::size),                                               \
       int(xsimd::batch<float, arch>::size),                                                \
-      &solve_full<arch, double, double, double>,                                           \
-      &solve_full_mixed<arch>,                                                             \
-      &solve_full<arch, float, double, double>,                                            \
-      &solve_full<arch, float, float, float>,                                              \
-      &solve_overlap<arch, double, double>,                                                \
-      &solve_overlap_mixed<arch>,                                                          \
-      &solve_overlap<arch, float, double>,                                                 \
-      &solve_overlap<arch, float, float>,                                                  \
+      &PWCONTACT_TARGET::solve_full<arch, double, double, double>,                                           \
+      &PWCONTACT_TARGET::solve_full_mixed<arch>,                                                             \
+      &PWCONTACT_TARGET::solve_full<arch, float, double, double>,                                            \
+      &PWCONTACT_TARGET::solve_full<arch, float, float, float>,                                              \
+      &PWCONTACT_TARGET::solve_overlap<arch, double, double>,                                                \
+      &PWCONTACT_TARGET::solve_overlap_mixed<arch>,                                                          \
+      &PWCONTACT_TARGET::solve_overlap<arch, float, double>,                                                 \
+      &PWCONTACT_TARGET::solve_overlap<arch, float, float>,                                                  \
   };                                                                                       \
   }

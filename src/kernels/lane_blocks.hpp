@@ -9,6 +9,8 @@
 // contact_kernel.hpp for why).
 #pragma once
 
+#include "kernels/target.hpp"
+
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -21,7 +23,7 @@
 // keeps them rolled; measured 3-4 %).
 #define PWCONTACT_UNROLL _Pragma("GCC unroll 4")
 
-namespace pwcontact::kernels {
+namespace pwcontact::kernels::PWCONTACT_TARGET {
 
 // Groups interleaved per instruction set, by measurement (1M random pairs,
 // one thread): AVX-512's 32 registers hold three groups' state (U = 3 is
@@ -340,7 +342,6 @@ PWCONTACT_INLINE void load_all(const PairSpan<T>& in, std::size_t i, PairLanes<B
 template <class Arch, class T, class In>
 PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLanes<xsimd::batch<T, Arch>>& p,
                        xsimd::batch<T, Arch>& scale) {
-  using B = xsimd::batch<T, Arch>;
   if constexpr (std::is_same<T, In>::value) {
     load_all(in, i, p);
     scale = nondimensionalise(p);
@@ -372,7 +373,7 @@ template <class In, std::size_t Block>
 struct PaddedTail {
   alignas(64) In buffer[pair_components][Block];
   alignas(64) In lambda_buffer[Block];
-  PairSpan<In> span;
+  PairSpan<In> span{};  // (aggregate initialisation: no constructor to emit)
 
   PaddedTail(const PairSpan<In>& in, std::size_t first, std::size_t rest) {
     for (int k = 0; k < pair_components; ++k) {
@@ -645,4 +646,4 @@ class LaneGroups {
   LanePositions at_[U];
 };
 
-}  // namespace pwcontact::kernels
+}  // namespace pwcontact::kernels::PWCONTACT_TARGET

@@ -20,6 +20,8 @@
 // eps; the margin is 256 growth eps).
 #pragma once
 
+#include "kernels/target.hpp"
+
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -29,7 +31,7 @@
 #include "kernels/lane_blocks.hpp"
 #include "kernels/simd_math.hpp"
 
-namespace pwcontact::kernels {
+namespace pwcontact::kernels::PWCONTACT_TARGET {
 
 template <class T>
 inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>::epsilon();
@@ -357,7 +359,7 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
       gathered[std::size_t(k) * stride + count] = double(element(in, k, i));
     positions[count++] = std::uint32_t(i);
   }
-  PairSpan<double> span;
+  PairSpan<double> span{};
   for (int k = 0; k < pair_components; ++k) {
     const double* column = gathered + std::size_t(k) * stride;
     if (k < 3) span.r12[k] = column;
@@ -405,4 +407,4 @@ void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std
   solve_overlap_in_two_passes<Arch, float, double, double>(in, out, n, settings, scratch, counters);
 }
 
-}  // namespace pwcontact::kernels
+}  // namespace pwcontact::kernels::PWCONTACT_TARGET

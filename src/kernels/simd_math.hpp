@@ -1,10 +1,11 @@
 // The arithmetic of the batch kernels on SIMD registers: one pair per lane.
 //
 // The mathematics is the reference path's (include/pwcontact/reference.hpp);
-// equation numbers refer to shared/seed/theory.txt. Everything here is a
-// template on the register type, so that the copies compiled with different
-// instruction-set flags are distinct symbols (see contact_kernel.hpp).
+// equation numbers refer to shared/seed/theory.txt. Compiled once per target,
+// in that target's namespace (target.hpp).
 #pragma once
+
+#include "kernels/target.hpp"
 
 #include <immintrin.h>
 #include <xsimd/xsimd.hpp>
@@ -23,7 +24,7 @@
 // Rarely taken paths (Accuracy::high) stay out of the hot code.
 #define PWCONTACT_COLD inline __attribute__((noinline, cold))
 
-namespace pwcontact::kernels {
+namespace pwcontact::kernels::PWCONTACT_TARGET {
 
 template <class Arch>
 inline constexpr bool is_avx512 = std::is_base_of<xsimd::avx512f, Arch>::value;
@@ -402,4 +403,4 @@ PWCONTACT_INLINE void widen(const xsimd::batch<float, Arch>& x, xsimd::batch<dou
   }
 }
 
-}  // namespace pwcontact::kernels
+}  // namespace pwcontact::kernels::PWCONTACT_TARGET
