@@ -361,9 +361,26 @@ Maximum<T> maximise(const T r[3], const T* p1, const T* p2, T lambda,
     // 3): from the radial guess ~sqrt(1e-50) Newton's steps grew fourfold
     // and more each time, the curvature ~1e-50 / lambda^3 made every predicted
     // gain negligible, and mu^2 = 4 was returned for 4.9.)
+    //
+    // A Newton iterate on the far end of the bracket is a point already
+    // evaluated (each evaluated lambda became lo or hi; after the clamp,
+    // next > 0 is never an unevaluated lo, nor next < 1 an unevaluated hi):
+    // no progress. When that end was itself left by a Newton step, the same
+    // g and g' lead back, a 2-cycle that the stall test ends only while the
+    // predicted gain is below one ulp of f, which noise in g of ~eps cond(Q)
+    // mu^2 defeats at large cond. Such an iterate is replaced by bisection
+    // below, or, when no number lies strictly inside the bracket (one ulp
+    // wide above 3/4, where 2 eps scale is less than an ulp of lambda), the
+    // iteration has settled. (Was: parallel flat ellipsoids, cond(Q(lambda*))
+    // 7.8e10, in long double: lambda alternating between 0.46806260966 and
+    // 0.46806260984, g = -/+17.41 (exact: -27.6, -10.2), g' = 9.8e10, a
+    // predicted gain of 1.16 ulps of f; not_converged after 200 evaluations.)
     const T scale = lambda < T(1) - lambda ? lambda : T(1) - lambda;
+    const bool revisit = newton && next != lambda && (next == lo || next == hi);
+    const T middle = (lo + hi) / 2;
     const bool settled = abs(next - lambda) <= T(2) * eps * scale ||
-                         hi - lo <= T(2) * eps * scale;
+                         hi - lo <= T(2) * eps * scale ||
+                         (revisit && !(lo < middle && middle < hi));
     const bool stalled = newton && it > 2 && abs(step) >= abs(previous_step) / 2 &&
                          abs(step) <= scale / 16 && res.g * step <= T(2) * eps * res.f;
     if (settled || stalled) {
@@ -372,7 +389,10 @@ Maximum<T> maximise(const T r[3], const T* p1, const T* p2, T lambda,
       if (!(final_res.f > 0) || !isfinite(final_res.f)) return {};
       return {final_res.f, next, true};
     }
-    if (newton) previous_step = step;
+    if (revisit)
+      next = middle;
+    else if (newton)
+      previous_step = step;
     lambda = next;
   }
   iterations += options.max_iterations;
