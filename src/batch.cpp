@@ -30,14 +30,6 @@ namespace {
 // next to the work (~60 us).
 constexpr std::size_t chunk_pairs = 48 * 48;
 
-const kernels::KernelTable& kernel_table(Isa isa) {
-  switch (isa) {
-    case Isa::avx512: return kernels::kernel_table_avx512;
-    case Isa::avx2: return kernels::kernel_table_avx2;
-    default: return kernels::kernel_table_sse2;
-  }
-}
-
 template <class T>
 constexpr bool single_input = std::is_same<T, float>::value;
 
@@ -353,7 +345,7 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
   const unsigned bits = output_bits(out);
   kernels::ChunkSettings settings = chunk_settings(report, options);
   settings.outputs = bits;
-  const auto kernel = full_kernel<T>(kernel_table(report.isa), report.precision);
+  const auto kernel = full_kernel<T>(kernels::kernels_for(report.isa), report.precision);
 
   // Statuses are needed to find the lanes left to the reference path.
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
@@ -420,7 +412,7 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   if (pairs.size == 0) return report;
   check_pairs(pairs);
   if (!out.overlap) throw std::invalid_argument("OverlapOutputs::overlap must not be null");
-  const auto kernel = overlap_kernel<T>(kernel_table(report.isa), report.precision);
+  const auto kernel = overlap_kernel<T>(kernels::kernels_for(report.isa), report.precision);
 
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   const OverlapOutputs all{out.overlap, out.status ? out.status : scratch_status.data()};
@@ -462,9 +454,9 @@ PairOverlapSolver::PairOverlapSolver(const BatchOptions& options, double cutoff,
     : state_(new State) {
   const BatchReport report = resolve<double>(options, capacity);
   state_->settings = overlap_settings<double>(report, options, cutoff);
-  state_->kernel = overlap_kernel<double>(kernel_table(report.isa), report.precision);
+  state_->kernel = overlap_kernel<double>(kernels::kernels_for(report.isa), report.precision);
   state_->narrow_kernel = report.isa == Isa::avx512 && isa_supported(Isa::avx2)
-                              ? overlap_kernel<double>(kernel_table(Isa::avx2), report.precision)
+                              ? overlap_kernel<double>(kernels::kernels_for(Isa::avx2), report.precision)
                               : state_->kernel;
   state_->capacity = capacity;
   const std::size_t bytes = kernels::scratch_bytes(capacity);

@@ -190,7 +190,8 @@ void expect_coincident_centres_give_zero(Isa isa) {
   const BatchRun<T> run = run_batch(make_batch(convert_all<T>(pairs)), with_isa(isa));
   for (std::size_t i = 0; i < pairs.size(); i += 2) {
     const std::string where = label<T>("lane " + std::to_string(i), isa);
-    EXPECT_EQ(run.status[i], Status::ok) << where;
+    // (The portable target answers every pair on the reference path.)
+    EXPECT_EQ(run.status[i], isa == Isa::fallback ? Status::ok_fallback : Status::ok) << where;
     EXPECT_EQ(run.mu2[i], T(0)) << where;
     EXPECT_GE(run.lambda[i], T(0)) << where;
     EXPECT_LE(run.lambda[i], T(1)) << where;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "pwcontact/pwcontact.hpp"
+#include "test_support.hpp"
 
 namespace {
 
@@ -142,6 +143,7 @@ TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {
 }
 
 TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
+  if (pwtest::on_portable_target()) GTEST_SKIP() << "the portable target makes no kernel evaluations to save";
   std::mt19937_64 engine(30);
   Moving m = random_scene(3000, 15, 6, false);
   pwcontact::SkinOptions warm_options, cold_options;

@@ -632,6 +632,8 @@ Pair<double> make_pair(const std::array<double, 3>& r, const pwcontact::Quadrati
   return {r, q1, q2};
 }
 
+bool on_portable_target() { return pwcontact::resolve_isa(Isa::automatic) == Isa::fallback; }
+
 ScopedEnvironment::ScopedEnvironment(std::string name, std::optional<std::string> value)
     : name_(std::move(name)) {
   if (const char* old = std::getenv(name_.c_str())) previous_ = old;
@@ -639,6 +641,7 @@ ScopedEnvironment::ScopedEnvironment(std::string name, std::optional<std::string
     ::setenv(name_.c_str(), value->c_str(), 1);
   else
     ::unsetenv(name_.c_str());
+  pwcontact::reread_isa_environment();  // (read once per process otherwise)
 }
 
 ScopedEnvironment::~ScopedEnvironment() {
@@ -646,6 +649,7 @@ ScopedEnvironment::~ScopedEnvironment() {
     ::setenv(name_.c_str(), previous_->c_str(), 1);
   else
     ::unsetenv(name_.c_str());
+  pwcontact::reread_isa_environment();
 }
 
 }  // namespace pwtest

@@ -23,21 +23,31 @@ namespace pwcontact {
 enum class Isa {
   automatic,  // the best this CPU runs, unless PWCONTACT_ISA says otherwise
   sse2,
-  avx2,    // AVX2 with FMA
-  avx512,  // AVX-512 F, CD, DQ, BW, VL
+  avx2,      // AVX2 with FMA
+  avx512,    // AVX-512 F, CD, DQ, BW, VL
+  fallback,  // portable: each pair on the reference path, one lane; on every
+             // CPU, and the only one where pwcontact is built without its x86
+             // kernels. Answers at the reference path's accuracy whatever the
+             // iteration setting; Accuracy::high as on the other targets.
 };
 
-const char* isa_name(Isa isa) noexcept;                        // "auto", "sse2", ...
+const char* isa_name(Isa isa) noexcept;                        // "auto", "sse2", ..., "fallback"
 std::optional<Isa> parse_isa(std::string_view name) noexcept;  // inverse of isa_name
-bool isa_supported(Isa isa) noexcept;  // by this CPU and OS; automatic is always
-std::vector<Isa> supported_isas();     // best first, never includes automatic
+bool isa_supported(Isa isa) noexcept;  // by this CPU and OS (and build); automatic is always
+std::vector<Isa> supported_isas();     // best first, never includes automatic; ends with fallback
 
 // The instruction set a batch call with `requested` will use: `requested`
 // itself, or for Isa::automatic the environment variable PWCONTACT_ISA
-// (auto|sse2|avx2|avx512) if set, else the best supported one.
-// Throws std::invalid_argument for an unknown PWCONTACT_ISA value and
-// std::runtime_error for an instruction set this CPU does not support.
+// (auto|sse2|avx2|avx512|fallback) if set, else the best supported one.
+// The CPU is examined and PWCONTACT_ISA read once per process, at the first
+// call that needs them. Throws std::invalid_argument for an unknown
+// PWCONTACT_ISA value and std::runtime_error for an instruction set this
+// CPU does not support.
 Isa resolve_isa(Isa requested);
+
+// Reads PWCONTACT_ISA again, for a program that changes its own environment
+// after its first batch call (resolve_isa reads it once).
+void reread_isa_environment();
 
 // SIMD lanes per register for this instruction set and floating type.
 int simd_lanes(Isa isa, bool single_precision);
@@ -158,7 +168,8 @@ enum class Formulation {
   automatic,  // the measured best for the precision (see README, "The trade")
   newton,     // Newton on g(lambda) = mu2^2 - mu1^2 (= -f'), in lambda
   log_odds,   // Newton on ln(mu2^2 / mu1^2) in t = ln(lambda / (1 - lambda)):
-              // exact in one step for spheres, steadier for elongated shapes
+              // cubic for spheres (doc/theory.md eq. 22), steadier for
+              // elongated shapes
 };
 
 // BatchOptions::iterations: 0 means automatic, any positive value a fixed count.

@@ -3,13 +3,14 @@
 //
 // It is a template so that the tests can instantiate it in higher precision
 // (long double, Boost.Multiprecision) as an oracle, and it is written to be
-// read against the theory (shared/seed/theory.txt); equation numbers below
-// refer to it.
+// read against the theory (doc/theory.md in the source tree); equation
+// numbers below refer to it.
 //
 // Method: the contact function is mu^2 = max over lambda in [0, 1] of
 //   f(lambda) = lambda (1 - lambda) r12^T Q^-1 r12,   Q = (1 - lambda) Q1 + lambda Q2
-// (eqs. 6, 10, 11). f is concave, so its maximiser is the unique root of the
-// increasing residual g = -f' = mu2^2 - mu1^2 (eq. 13), bracketed by [0, 1].
+// (eqs. 6, 10, 11). f is concave (eq. 15), so its maximiser is the unique root
+// of the increasing residual g = -f' = mu2^2 - mu1^2 (eqs. 13, 17), bracketed
+// by [0, 1] (eq. 16).
 // We run a safeguarded Newton iteration on g: a Newton step is accepted when
 // it stays inside the current bracket (inclusive test: at convergence the
 // Newton iterate coincides with a bracket end) and is replaced by bisection
@@ -498,7 +499,7 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
           iterations};
 }
 
-// What else the maximiser lambda gives (shared/notes/numerics.md), with
+// What else the maximiser lambda gives (doc/theory.md eq. 43), with
 // s = Q(lambda)^-1 r12:
 template <class T>
 struct ContactGeometry {

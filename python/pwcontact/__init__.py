@@ -70,7 +70,7 @@ def reference(r12, q1, q2) -> Tuple[float, float, Status]:
 
 
 def supported_isas() -> list:
-    """The instruction sets this CPU runs, best first (e.g. ['avx512', 'avx2', 'sse2'])."""
+    """The instruction sets this CPU runs, best first (e.g. ['avx512', 'avx2', 'sse2', 'fallback'])."""
     return _core.supported_isas()
 
 
@@ -163,7 +163,7 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     precision: "auto" (float32 pairs in float, else double), "double",
     "float", "mixed". iterations: "auto" (each pair until its convergence
     check passes) or a fixed count 1 .. 40. accuracy: "standard" or "high".
-    threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512".
+    threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512", "fallback" (the reference path per pair, on any CPU).
     lambda_start: optional (N,) array, a lambda to start each pair from (a
     warm start, e.g. the previous step's; NaN for none).
     out: optional dict of arrays to write into, reused across calls:

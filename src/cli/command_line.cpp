@@ -266,13 +266,13 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
       "steadier for elongated shapes. The summary names the one used");
   add_threads_option(parser, options.threads, "results");
   parser.add_value(
-      {"--isa"}, "auto|sse2|avx2|avx512",
+      {"--isa"}, "auto|sse2|avx2|avx512|fallback",
       "auto = PWCONTACT_ISA if set, else the best; here " +
           std::string(isa_name(supported_isas().front())),
       "instruction set of the batch path; this CPU runs " + supported_isa_list(),
       [&options](std::string_view value) {
         const std::optional<Isa> isa = parse_isa(value);
-        if (!isa) throw std::invalid_argument(quoted(value) + " is not auto, sse2, avx2 or avx512");
+        if (!isa) throw std::invalid_argument(quoted(value) + " is not auto, sse2, avx2, avx512 or fallback");
         options.isa = *isa;
       });
 }

@@ -15,7 +15,7 @@
 // (its convergence check). Lanes that are not are kept, packed into full
 // registers, and continue in the next pass (automatic iterations), or go to
 // the reference path (fixed iterations). Lanes step together and diverge
-// only through select. Equation numbers refer to shared/seed/theory.txt.
+// only through select. Equation numbers refer to doc/theory.md.
 #pragma once
 
 #include "kernels/target.hpp"

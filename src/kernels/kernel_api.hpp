@@ -113,8 +113,16 @@ struct KernelTable {
   OverlapKernel<float> overlap_float;
 };
 
+// The tables, one per target (kernels/contact_<target>.cpp); chosen only
+// through kernels_for (isa.cpp, the one dispatch point).
+#if PWCONTACT_X86_KERNELS
 extern const KernelTable kernel_table_sse2;
 extern const KernelTable kernel_table_avx2;
 extern const KernelTable kernel_table_avx512;
+#endif
+extern const KernelTable kernel_table_fallback;
+
+// The kernels of a resolved, supported instruction set (not automatic).
+const KernelTable& kernels_for(Isa isa) noexcept;
 
 }  // namespace pwcontact::kernels

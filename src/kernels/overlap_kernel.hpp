@@ -1,23 +1,22 @@
 // The overlap-only batch kernel: whether mu < cutoff for many pairs at once,
 // decided with certificates so that most lanes stop early.
 //
-// Bounds on mu^2 (shared/notes/numerics.md; equation numbers refer to
-// shared/seed/theory.txt):
+// Bounds on mu^2 (equation numbers refer to doc/theory.md):
 // - before any evaluation, from extents along the centre line r = r12:
 //   the points at distance rho_i = |r| / sqrt(r^T Qi^-1 r) from centre i
 //   towards the other centre lie in ellipsoid i, so scaled by mu the two
 //   ellipsoids share a point of the segment once mu (rho1 + rho2) >= |r|:
-//   mu^2 <= 1 / (1/sqrt(s0) + 1/sqrt(s1))^2 with s_i = r^T Qi^-1 r; and the
+//   mu^2 <= 1 / (1/sqrt(s0) + 1/sqrt(s1))^2 with s_i = r^T Qi^-1 r (eq. 31); and the
 //   support extents h_i = sqrt(r^T Qi r) / |r| give a separating plane
 //   perpendicular to r while mu (h1 + h2) < |r|: mu^2 >= |r|^4 / (sqrt(r^T Q1 r)
-//   + sqrt(r^T Q2 r))^2. Both are exact for spheres.
-// - after an evaluation at lambda: mu^2 >= f(lambda) (eq. 6), and since f is
-//   concave, its tangents at the bracket ends lie above it: mu^2 is at most
-//   the height where they cross.
+//   + sqrt(r^T Q2 r))^2 (eq. 32). Both are exact for spheres.
+// - after an evaluation at lambda: mu^2 >= f(lambda) (eqs. 6, 27), and since f
+//   is concave, its tangents at the bracket ends lie above it: mu^2 is at most
+//   the height where they cross (eq. 29).
 // A bound decides a lane when it clears cutoff^2 by more than its rounding
 // error, estimated as a multiple of eps times the element growth of the
 // factorisations behind it (the float kernels were measured below ~100 growth
-// eps; the margin is 256 growth eps).
+// eps; the margin is 256 growth eps; eq. 40).
 #pragma once
 
 #include "kernels/target.hpp"

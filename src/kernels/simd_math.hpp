@@ -1,7 +1,7 @@
 // The arithmetic of the batch kernels on SIMD registers: one pair per lane.
 //
 // The mathematics is the reference path's (include/pwcontact/reference.hpp);
-// equation numbers refer to shared/seed/theory.txt. Compiled once per target,
+// equation numbers refer to doc/theory.md. Compiled once per target,
 // in that target's namespace (target.hpp).
 #pragma once
 
@@ -135,7 +135,7 @@ PWCONTACT_INLINE void symmetric_times(const B a[6], const B x[3], B y[3]) {
 
 // The adjugate (cofactor matrix) and determinant of a symmetric Q: rᵀQ⁻¹r =
 // rᵀ adj(Q) r / det Q without a division per pivot. Cancellation makes it
-// unreliable for ill-conditioned Q (shared/notes/numerics.md): only for
+// unreliable for ill-conditioned Q (doc/theory.md, eq. 39): only for
 // initial guesses and positive-definiteness tests, never for answers.
 template <class B>
 struct Adjugate {

@@ -137,7 +137,7 @@ pwcontact::BatchOptions batch_options(const std::string& precision, const py::ob
   if (!a) throw py::value_error("accuracy must be standard or high; got '" + accuracy + "'");
   o.accuracy = *a;
   const auto i = pwcontact::parse_isa(isa);
-  if (!i) throw py::value_error("isa must be one of auto, sse2, avx2, avx512; got '" + isa + "'");
+  if (!i) throw py::value_error("isa must be one of auto, sse2, avx2, avx512, fallback; got '" + isa + "'");
   o.isa = *i;
   if (iterations.is_none() || (py::isinstance<py::str>(iterations) && iterations.cast<std::string>() == "auto")) {
     o.iterations = pwcontact::automatic_iterations;

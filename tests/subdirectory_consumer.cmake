@@ -1,0 +1,34 @@
+# Configures, builds and runs the consumer project with pwcontact's source
+# tree pulled in by add_subdirectory, with no build type of its own (which
+# pwcontact must leave empty). Run with cmake -P; any failing step fails the
+# test and shows that step's output.
+foreach(variable PWCONTACT_SOURCE_DIR CONSUMER_SOURCE_DIR WORK_DIR CMAKE_CXX_COMPILER)
+  if(NOT DEFINED ${variable})
+    message(FATAL_ERROR "subdirectory_consumer.cmake needs -D${variable}=...")
+  endif()
+endforeach()
+
+set(build "${WORK_DIR}/build")
+file(REMOVE_RECURSE "${WORK_DIR}")
+
+function(run_step name)
+  list(JOIN ARGN " " command)
+  message(STATUS "${name}: ${command}")
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE result OUTPUT_VARIABLE output ERROR_VARIABLE output)
+  if(NOT result EQUAL 0)
+    message(FATAL_ERROR "${name} failed (${result}):\n${output}")
+  endif()
+  message(STATUS "${name} output:\n${output}")
+endfunction()
+
+run_step(configure "${CMAKE_COMMAND}" -S "${CONSUMER_SOURCE_DIR}" -B "${build}"
+  "-DPWCONTACT_SOURCE_DIR=${PWCONTACT_SOURCE_DIR}"
+  "-DCMAKE_CXX_COMPILER=${CMAKE_CXX_COMPILER}")
+load_cache("${build}" READ_WITH_PREFIX CONSUMER_ CMAKE_BUILD_TYPE)
+if(NOT "${CONSUMER_CMAKE_BUILD_TYPE}" STREQUAL "")
+  message(FATAL_ERROR "the parent's build type became '${CONSUMER_CMAKE_BUILD_TYPE}'")
+endif()
+include(ProcessorCount)
+ProcessorCount(cores)
+run_step(build "${CMAKE_COMMAND}" --build "${build}" -j ${cores})
+run_step(run "${build}/pwcontact_consumer")
