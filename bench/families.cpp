@@ -7,7 +7,7 @@
 #include <stdexcept>
 
 #include "accuracy.hpp"
-#include "pwcontact/families.hpp"
+#include "fixtures/families.hpp"
 #include "pwcontact/reference.hpp"
 
 namespace pwcontact::bench {

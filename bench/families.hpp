@@ -14,7 +14,7 @@
 
 #include "configuration.hpp"
 #include "pwcontact/batch.hpp"
-#include "pwcontact/families.hpp"
+#include "fixtures/families.hpp"
 #include "pwcontact/status.hpp"
 
 namespace pwcontact::bench {

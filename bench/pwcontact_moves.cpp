@@ -52,6 +52,7 @@
 #include <string>
 #include <vector>
 
+#include "fixtures/families.hpp"
 #include "pwcontact/pwcontact.hpp"
 
 #ifdef PWCONTACT_WITH_FCL

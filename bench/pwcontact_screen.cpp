@@ -48,6 +48,7 @@
 #include <vector>
 
 #include "brent_baseline.hpp"
+#include "fixtures/families.hpp"
 #include "pwcontact/pwcontact.hpp"
 
 namespace {

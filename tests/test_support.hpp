@@ -16,6 +16,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "fixtures/families.hpp"
 #include "pwcontact/pwcontact.hpp"
 
 namespace pwcontact {

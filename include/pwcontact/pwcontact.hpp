@@ -4,7 +4,6 @@
 
 #include "pwcontact/batch.hpp"
 #include "pwcontact/ellipsoid.hpp"
-#include "pwcontact/families.hpp"
 #include "pwcontact/monte_carlo.hpp"
 #include "pwcontact/moving_scene.hpp"
 #include "pwcontact/neighbor_list.hpp"

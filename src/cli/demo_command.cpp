@@ -12,7 +12,7 @@
 #include "cli/screen_summary.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
-#include "pwcontact/families.hpp"
+#include "fixtures/families.hpp"
 
 namespace pwcontact::cli {
 namespace {

@@ -9,7 +9,7 @@
 #include "cli/solve.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
-#include "pwcontact/families.hpp"
+#include "fixtures/families.hpp"
 
 namespace pwcontact::cli {
 namespace {

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "parallel_errors.hpp"
+#include "fixtures/families.hpp"
 #include "pwcontact/pwcontact.hpp"
 
 namespace py = pybind11;
