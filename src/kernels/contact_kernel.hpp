@@ -117,8 +117,16 @@ __attribute__((noinline)) void write_geometry(const ResultSpan<Out> out, const L
   }
 }
 
-// What a full-answer lane keeps between passes besides its pair.
-inline constexpr int full_state = 4;  // scale, lambda, lo, hi
+// What a full-answer lane keeps between passes besides its pair: its slots
+// in the kept arrays, after the pair's components.
+enum FullSlot : int {
+  full_scale = pair_components,  // the power of two the pair was scaled by
+  full_lambda,
+  full_lo,  // the bracket of the maximiser
+  full_hi,
+  full_slots_end
+};
+inline constexpr int full_state = full_slots_end - pair_components;
 template <class T>
 using FullKept = KeptLanes<T, full_state>;
 
@@ -166,12 +174,72 @@ void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status
     }
     const std::size_t c = kept.count++;
     for (int k = 0; k < pair_components; ++k) kept.values[k][c] = T(v[k] * (k < 3 ? t : t * t));
-    kept.values[15][c] = T(t);
-    kept.values[16][c] = state.lambda[i];
-    kept.values[17][c] = state.lo[i];
-    kept.values[18][c] = state.hi[i];
+    kept.values[full_scale][c] = T(t);
+    kept.values[full_lambda][c] = state.lambda[i];
+    kept.values[full_lo][c] = state.lo[i];
+    kept.values[full_hi][c] = state.hi[i];
     kept.index[c] = std::uint32_t(i);
   }
+}
+
+// The convergence test of a lane after evaluation e, a pure function of the
+// evaluation, the bracket [lo, hi] and whether the safeguarded step stayed in
+// it (doc/theory.md eqs. 23-26 for the corrected answer f + gain, eq. 28 for
+// the bound):
+// Near the maximum f is a parabola in lambda, and
+// one more Newton step would raise f by the gain g^2 / (2 g'). A lane is
+// finished when that step stayed in the bracket (the model holds), the
+// gain is below corrected_gain f, and the model's own error, the
+// third-order term ~gain |step| / w with w = min(lambda, 1 - lambda)
+// (see KernelTolerance::third_order), is below an eps of f: the answer
+// is then f + gain. Without the third-order test a lane with lambda*
+// near 0 or 1 (very different sizes) would stop where the step is a
+// sizeable fraction of w and the gain's error hundreds of eps.
+// When lambda or what depends on it is asked for, the step must also
+// be below lambda_step w: lambda itself (the Newton step's) is then
+// accurate to ~1e-12 w (a small gain alone does not make it so where f
+// is flat: crossed needles and discs, whose g' is tiny).
+// Otherwise (a bisection step, round-off noise in g near convergence)
+// the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
+// ulp of f finishes it, with the answer f (and, when lambda is asked
+// for, the same bound on the step).
+// The model is Newton's whatever the formulation. Its step is g / g'
+// as divided, never the difference of lambda before and after the step
+// taken: where lambda* lies within a few thousand ulps of 0 or 1, a
+// step below half an ulp of lambda rounds to no step at all, and a
+// rounded-away step would pass every test above with a gain of 0 (was:
+// started at 1 - 1e-16 beside lambda* = 1 - 1e-12, mu^2 1e-8 low with
+// status ok). Such a lane cannot move; it goes on to the reference path,
+// which seeks a maximiser near 1 on the mirrored pair.
+template <class B>
+struct Convergence {
+  typename B::batch_bool_type corrected;  // finished, with the answer f + gain
+  typename B::batch_bool_type bounded;    // finished by the bound, with the answer f
+  B gain;                                 // g^2 / (2 g') (eq. 23)
+  B newton_lambda;                        // lambda - g / g', as divided
+};
+
+template <class T, class B>
+PWCONTACT_INLINE Convergence<B> convergence_test(const Evaluation<B>& e, const B& lo, const B& hi,
+                                                 const typename B::batch_bool_type& newton_in_bracket,
+                                                 bool newton_formulation, bool lambda_asked,
+                                                 const B& gain_tolerance) {
+  using M = typename B::batch_bool_type;
+  const B step = e.g / e.dg;
+  const B newton_lambda = e.lambda - step;
+  const M in_bracket =
+      newton_formulation ? newton_in_bracket : (lo <= newton_lambda) & (newton_lambda <= hi);
+  const B gain = B(0.5) * e.g * step;
+  const B width = xsimd::min(e.lambda, e.mu);
+  const B abs_step = xsimd::abs(step);
+  M small_step = B(0) == B(0);
+  if (lambda_asked) small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
+  const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance * e.f) &
+                      (gain * abs_step <= B(KernelTolerance<T>::third_order) * width * e.f) &
+                      small_step;
+  const M bounded =
+      (xsimd::abs(e.g) * (hi - lo) <= B(KernelTolerance<T>::bounded_gain) * e.f) & small_step;
+  return {corrected, bounded, gain, newton_lambda};
 }
 
 // A block of U groups of lanes, solved for the full answer.
@@ -269,10 +337,10 @@ class FullBlock : public LaneGroups<Arch, T> {
       const std::size_t at = j + std::size_t(u) * W;
       for (int k = 0; k < pair_components; ++k)
         component(pair_[u], k) = B::load_unaligned(kept_.values[k] + at);
-      scale_[u] = B::load_unaligned(kept_.values[15] + at);
-      lambda_[u] = B::load_unaligned(kept_.values[16] + at);
-      lo_[u] = B::load_unaligned(kept_.values[17] + at);
-      hi_[u] = B::load_unaligned(kept_.values[18] + at);
+      scale_[u] = B::load_unaligned(kept_.values[full_scale] + at);
+      lambda_[u] = B::load_unaligned(kept_.values[full_lambda] + at);
+      lo_[u] = B::load_unaligned(kept_.values[full_lo] + at);
+      hi_[u] = B::load_unaligned(kept_.values[full_hi] + at);
       at_[u] = {0, kept_.index + at, at < count ? (count - at < W ? count - at : W) : 0};
       live_[u] = this->real_lanes(u);
       coincident_[u] = B(0) != B(0);
@@ -307,48 +375,12 @@ class FullBlock : public LaneGroups<Arch, T> {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
       const M newton = this->advance(e, u);
-      // Convergence check. Near the maximum f is a parabola in lambda, and
-      // one more Newton step would raise f by the gain g^2 / (2 g'). A lane is
-      // finished when that step stayed in the bracket (the model holds), the
-      // gain is below corrected_gain f, and the model's own error, the
-      // third-order term ~gain |step| / w with w = min(lambda, 1 - lambda)
-      // (see KernelTolerance::third_order), is below an eps of f: the answer
-      // is then f + gain. Without the third-order test a lane with lambda*
-      // near 0 or 1 (very different sizes) would stop where the step is a
-      // sizeable fraction of w and the gain's error hundreds of eps.
-      // When lambda or what depends on it is asked for, the step must also
-      // be below lambda_step w: lambda itself (the Newton step's) is then
-      // accurate to ~1e-12 w (a small gain alone does not make it so where f
-      // is flat: crossed needles and discs, whose g' is tiny).
-      // Otherwise (a bisection step, round-off noise in g near convergence)
-      // the rigorous concavity bound mu^2 - f <= |g| (hi - lo) below a few
-      // ulp of f finishes it, with the answer f (and, when lambda is asked
-      // for, the same bound on the step).
-      // The model is Newton's whatever the formulation. Its step is g / g'
-      // as divided, never the difference of lambda before and after the step
-      // taken: where lambda* lies within a few thousand ulps of 0 or 1, a
-      // step below half an ulp of lambda rounds to no step at all, and a
-      // rounded-away step would pass every test above with a gain of 0 (was:
-      // started at 1 - 1e-16 beside lambda* = 1 - 1e-12, mu^2 1e-8 low with
-      // status ok). Such a lane cannot move; it goes on to the reference path,
-      // which seeks a maximiser near 1 on the mirrored pair.
-      const bool newton_formulation = settings_.formulation == Formulation::newton;
-      const B step = e.g / e.dg;
-      const B newton_lambda = e.lambda - step;
-      const M in_bracket =
-          newton_formulation ? newton : (lo_[u] <= newton_lambda) & (newton_lambda <= hi_[u]);
-      const B gain = B(0.5) * e.g * step;
-      const B width = xsimd::min(e.lambda, e.mu);
-      const B abs_step = xsimd::abs(step);
-      M small_step = B(0) == B(0);
-      if (settings_.outputs != 0) small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
-      const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance_ * e.f) &
-                          (gain * abs_step <= B(KernelTolerance<T>::third_order) * width * e.f) &
-                          small_step;
-      const M bounded = (xsimd::abs(e.g) * (hi_[u] - lo_[u]) <=
-                         B(KernelTolerance<T>::bounded_gain) * e.f) &
-                        small_step;
-      M done = corrected | bounded;
+      const Convergence<B> test =
+          convergence_test<T>(e, lo_[u], hi_[u], newton, settings_.formulation == Formulation::newton,
+                              settings_.outputs != 0, gain_tolerance_);
+      const M corrected = test.corrected;
+      const B gain = test.gain, newton_lambda = test.newton_lambda;
+      M done = test.corrected | test.bounded;
       // A float lane too ill-conditioned for float goes to the reference path
       // (in double) now: more float iterations would not help it.
       M hopeless = B(0) != B(0);
@@ -377,24 +409,7 @@ class FullBlock : public LaneGroups<Arch, T> {
       write_statuses<Arch, T>(out.status, at_[u], finished);
 
       // (A lane done whose answer is not usable is neither: the reference path.)
-      const M unfinished = live_[u] & !done & !coincident_[u] & !hopeless;
-      if (handoff == Handoff::adaptive && xsimd::any(unfinished)) {
-        // A register with many unfinished lanes is packed right away (one
-        // masked compress per array); one with a few leaves them by position,
-        // to be packed lane by lane (pack_unfinished), which is cheaper for a
-        // few and costlier for many (measured: random pairs, with a few per
-        // register, and the pw85 family, with half, each gain ~10 %).
-        const bool many = count_lanes<Arch, T>(unfinished) * 4 > W;
-        if (many) keep_registers(u, unfinished);
-        const B nan(std::numeric_limits<T>::quiet_NaN());
-        write_lanes<Arch, T, T>(state.lambda, at_[u], many ? nan : xsimd::select(unfinished, lambda_[u], nan));
-        write_lanes<Arch, T, T>(state.lo, at_[u], lo_[u]);
-        write_lanes<Arch, T, T>(state.hi, at_[u], hi_[u]);
-      } else if (handoff == Handoff::adaptive) {
-        write_lanes<Arch, T, T>(state.lambda, at_[u], B(std::numeric_limits<T>::quiet_NaN()));
-      } else if (handoff == Handoff::packed) {
-        keep_registers(u, unfinished);
-      }
+      hand_over(u, live_[u] & !done & !coincident_[u] & !hopeless, handoff, state);
     }
   }
 
@@ -413,14 +428,38 @@ class FullBlock : public LaneGroups<Arch, T> {
     return xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
   }
 
+  // Hands over the lanes of group u that are not finished (`unfinished`):
+  // kept for the next pass, left by chunk position for pack_unfinished, or
+  // left to the reference path, as `handoff` says.
+  PWCONTACT_INLINE void hand_over(int u, const M& unfinished, Handoff handoff,
+                                  const StateByPosition<T>& state) {
+    if (handoff == Handoff::adaptive && xsimd::any(unfinished)) {
+      // A register with many unfinished lanes is packed right away (one
+      // masked compress per array); one with a few leaves them by position,
+      // to be packed lane by lane (pack_unfinished), which is cheaper for a
+      // few and costlier for many (measured: random pairs, with a few per
+      // register, and the pw85 family, with half, each gain ~10 %).
+      const bool many = count_lanes<Arch, T>(unfinished) * 4 > W;
+      if (many) keep_registers(u, unfinished);
+      const B nan(std::numeric_limits<T>::quiet_NaN());
+      write_lanes<Arch, T, T>(state.lambda, at_[u], many ? nan : xsimd::select(unfinished, lambda_[u], nan));
+      write_lanes<Arch, T, T>(state.lo, at_[u], lo_[u]);
+      write_lanes<Arch, T, T>(state.hi, at_[u], hi_[u]);
+    } else if (handoff == Handoff::adaptive) {
+      write_lanes<Arch, T, T>(state.lambda, at_[u], B(std::numeric_limits<T>::quiet_NaN()));
+    } else if (handoff == Handoff::packed) {
+      keep_registers(u, unfinished);
+    }
+  }
+
   // Appends the lanes of group u selected by `which` to the kept lanes.
   PWCONTACT_INLINE void keep_registers(int u, const M& which) {
     B values[FullKept<T>::arrays];
     for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);
-    values[15] = scale_[u];
-    values[16] = lambda_[u];
-    values[17] = lo_[u];
-    values[18] = hi_[u];
+    values[full_scale] = scale_[u];
+    values[full_lambda] = lambda_[u];
+    values[full_lo] = lo_[u];
+    values[full_hi] = hi_[u];
     keep_lanes<Arch, T, full_state>(kept_, which, values, at_[u]);
   }
 
@@ -527,13 +566,12 @@ void later_passes(FullKept<T>& kept, const ResultSpan<Out>& out, int done,
 }
 
 // lambda and the bracket by chunk position, in the scratch arrays after the
-// kept lanes'.
+// kept lanes' (lane_blocks.hpp, scratch_array).
 template <class T>
 PWCONTACT_INLINE StateByPosition<T> state_by_position(const Scratch& scratch) {
-  const std::size_t stride = scratch.capacity + scratch_padding_pairs;
-  T* const base = static_cast<T*>(scratch.memory) + FullKept<T>::footprint * stride;
-  static_assert(FullKept<T>::footprint + 3 <= scratch_values_per_pair);
-  return {base, base + stride, base + 2 * stride};
+  constexpr std::size_t first = FullKept<T>::footprint, used = first + 3;
+  return {scratch_array<T, used>(scratch, first), scratch_array<T, used>(scratch, first + 1),
+          scratch_array<T, used>(scratch, first + 2)};
 }
 
 // Full answer, arithmetic T, pairs In, results Out (float lanes on double
@@ -541,7 +579,7 @@ PWCONTACT_INLINE StateByPosition<T> state_by_position(const Scratch& scratch) {
 template <class Arch, class T, class In, class Out>
 void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t n,
                 const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
-  FullKept<T> kept(scratch, 0);
+  FullKept<T> kept(scratch);
   const StateByPosition<T> state = state_by_position<T>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
   // A warm start (lambda_start given) is a Newton step or so from the
@@ -567,8 +605,8 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
 template <class Arch>
 void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out, std::size_t n,
                       const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
-  FullKept<double> kept(scratch, 0);
-  FullKept<float> never_kept(scratch, 0);
+  FullKept<double> kept(scratch);
+  FullKept<float> never_kept(scratch);
   const StateByPosition<double> state = state_by_position<double>(scratch);
   const bool automatic = settings.iterations == automatic_iterations;
   const int float_steps = automatic ? mixed_float_steps : settings.iterations;

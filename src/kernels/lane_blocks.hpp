@@ -153,25 +153,40 @@ PWCONTACT_INLINE const B& component(const PairLanes<B>& p, int k) {
   return k < 3 ? p.r[k] : k < 9 ? p.q1[k - 3] : p.q2[k - 9];
 }
 
+// The kernels' scratch memory (kernel_api.hpp: scratch_values_per_pair
+// arrays of capacity + padding doubles per thread), divided here and only
+// here: array k of type T begins k arrays of T in (arrays of float take half
+// the room). What lies where, each from array 0:
+//   - the lanes kept between passes (KeptLanes: the pair, the kernel's named
+//     state, the chunk positions), footprint arrays;
+//   - after them, full answers: lambda and the bracket by chunk position
+//     (contact_kernel.hpp, state_by_position); overlap answers: the pairs
+//     the cheap pass left, in double, and their positions
+//     (overlap_kernel.hpp, gather_undecided).
+// `arrays_used` is checked against the room at compile time.
+template <class T, std::size_t arrays_used>
+PWCONTACT_INLINE T* scratch_array(const Scratch& scratch, std::size_t k) {
+  static_assert(arrays_used * sizeof(T) <= scratch_values_per_pair * sizeof(double),
+                "the scratch layout needs more room than kernel_api.hpp gives it");
+  return static_cast<T*>(scratch.memory) + k * (scratch.capacity + scratch_padding_pairs);
+}
+
 // Lanes kept between passes, in the scratch memory: the nondimensionalised
-// pair and `state` more numbers per lane (the bracket, lambda, ...), and
-// where the pair sits in the chunk. Arrays of capacity + padding elements.
+// pair and `State` more numbers per lane (named by the kernel's slot enum:
+// FullSlot, OverlapSlot), and where the pair sits in the chunk.
 template <class T, int State>
 struct KeptLanes {
   static constexpr int arrays = pair_components + State;
-  T* values[arrays];  // the pair's 15 components, then the state
+  // Arrays of T the kept lanes occupy (the positions take one).
+  static constexpr std::size_t footprint = arrays + 1;
+  T* values[arrays];  // the pair's 15 components (component()), then the state
   std::uint32_t* index;
   std::size_t count = 0;
 
-  PWCONTACT_INLINE KeptLanes(const Scratch& scratch, std::size_t first_array) {
-    const std::size_t stride = scratch.capacity + scratch_padding_pairs;
-    T* base = static_cast<T*>(scratch.memory) + first_array * stride;
-    for (int k = 0; k < arrays; ++k) values[k] = base + std::size_t(k) * stride;
-    index = reinterpret_cast<std::uint32_t*>(base + std::size_t(arrays) * stride);
+  PWCONTACT_INLINE explicit KeptLanes(const Scratch& scratch) {
+    for (int k = 0; k < arrays; ++k) values[k] = scratch_array<T, footprint>(scratch, std::size_t(k));
+    index = reinterpret_cast<std::uint32_t*>(scratch_array<T, footprint>(scratch, arrays));
   }
-  // Arrays of T the kept lanes occupy (the index takes one).
-  static constexpr std::size_t footprint = arrays + 1;
-  static_assert(footprint <= scratch_values_per_pair);
 };
 
 // The largest diagonal entry of Q1 and Q2, for nondimensionalising.

@@ -45,10 +45,22 @@ inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1
 // How far ahead the prefilter asks for its inputs, in blocks (measured).
 inline constexpr std::size_t prefilter_prefetch_blocks = 8;
 
-// What an undecided lane keeps between passes besides its pair: lambda, the
-// bracket with f and g at its ends (for the tangents), the certified bounds
-// (margins applied) and the largest margin so far.
-inline constexpr int overlap_state = 10;
+// What an undecided lane keeps between passes besides its pair: its slots
+// in the kept arrays, after the pair's components.
+enum OverlapSlot : int {
+  overlap_lambda = pair_components,
+  overlap_lo,  // the bracket, with f and g at its ends (for the tangents)
+  overlap_hi,
+  overlap_f_lo,
+  overlap_g_lo,
+  overlap_f_hi,
+  overlap_g_hi,
+  overlap_lower,  // the certified bounds on mu^2, margins applied
+  overlap_upper,
+  overlap_margin,  // the largest margin so far
+  overlap_slots_end
+};
+inline constexpr int overlap_state = overlap_slots_end - pair_components;
 template <class T>
 using OverlapKept = KeptLanes<T, overlap_state>;
 
@@ -178,10 +190,17 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const std::size_t at = j + std::size_t(u) * W;
       for (int k = 0; k < pair_components; ++k)
         component(pair_[u], k) = B::load_unaligned(kept_.values[k] + at);
-      B* const state[overlap_state] = {&lambda_[u], &lo_[u],    &hi_[u],    &f_lo_[u],  &g_lo_[u],
-                                       &f_hi_[u],   &g_hi_[u],  &lower_[u], &upper_[u], &margin_[u]};
-      for (int k = 0; k < overlap_state; ++k)
-        *state[k] = B::load_unaligned(kept_.values[pair_components + k] + at);
+      auto slot = [&](int k) { return B::load_unaligned(kept_.values[k] + at); };
+      lambda_[u] = slot(overlap_lambda);
+      lo_[u] = slot(overlap_lo);
+      hi_[u] = slot(overlap_hi);
+      f_lo_[u] = slot(overlap_f_lo);
+      g_lo_[u] = slot(overlap_g_lo);
+      f_hi_[u] = slot(overlap_f_hi);
+      g_hi_[u] = slot(overlap_g_hi);
+      lower_[u] = slot(overlap_lower);
+      upper_[u] = slot(overlap_upper);
+      margin_[u] = slot(overlap_margin);
       at_[u] = {0, kept_.index + at, at < count ? (count - at < W ? count - at : W) : 0};
       live_[u] = this->real_lanes(u);
     }
@@ -261,12 +280,18 @@ class OverlapBlock : public LaneGroups<Arch, T> {
     // iterations would not decide the lane, the reference path will.
     const M undecidable = upper_[u] <= lower_[u] * (B(1) + B(8) * margin_[u]);
     if (keep) {
-      const B values[OverlapKept<T>::arrays] = {
-          pair_[u].r[0],  pair_[u].r[1],  pair_[u].r[2],  pair_[u].q1[0], pair_[u].q1[1],
-          pair_[u].q1[2], pair_[u].q1[3], pair_[u].q1[4], pair_[u].q1[5], pair_[u].q2[0],
-          pair_[u].q2[1], pair_[u].q2[2], pair_[u].q2[3], pair_[u].q2[4], pair_[u].q2[5],
-          lambda_[u],     lo_[u],         hi_[u],         f_lo_[u],       g_lo_[u],
-          f_hi_[u],       g_hi_[u],       lower_[u],      upper_[u],      margin_[u]};
+      B values[OverlapKept<T>::arrays];
+      for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);
+      values[overlap_lambda] = lambda_[u];
+      values[overlap_lo] = lo_[u];
+      values[overlap_hi] = hi_[u];
+      values[overlap_f_lo] = f_lo_[u];
+      values[overlap_g_lo] = g_lo_[u];
+      values[overlap_f_hi] = f_hi_[u];
+      values[overlap_g_hi] = g_hi_[u];
+      values[overlap_lower] = lower_[u];
+      values[overlap_upper] = upper_[u];
+      values[overlap_margin] = margin_[u];
       keep_lanes<Arch, T, overlap_state>(kept_, live_[u] & !decided & !undecidable, values, at_[u]);
     }
   }
@@ -346,21 +371,21 @@ template <class Arch, class In>
 PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const Status* status,
                                   const Scratch& scratch, std::uint32_t*& positions,
                                   std::size_t& count) {
-  const std::size_t stride = scratch.capacity + scratch_padding_pairs;
-  double* const gathered =
-      static_cast<double*>(scratch.memory) + OverlapKept<double>::footprint * stride;
-  static_assert(OverlapKept<double>::footprint + pair_components + 1 <= scratch_values_per_pair);
-  positions = reinterpret_cast<std::uint32_t*>(gathered + pair_components * stride);
+  // (After the kept lanes' arrays, in scratch_array's layout.)
+  constexpr std::size_t first = OverlapKept<double>::footprint, used = first + pair_components + 1;
+  double* columns[pair_components];
+  for (int k = 0; k < pair_components; ++k)
+    columns[k] = scratch_array<double, used>(scratch, first + std::size_t(k));
+  positions = reinterpret_cast<std::uint32_t*>(scratch_array<double, used>(scratch, first + pair_components));
   count = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (status[i] != needs_fallback) continue;
-    for (int k = 0; k < pair_components; ++k)
-      gathered[std::size_t(k) * stride + count] = double(element(in, k, i));
+    for (int k = 0; k < pair_components; ++k) columns[k][count] = double(element(in, k, i));
     positions[count++] = std::uint32_t(i);
   }
   PairSpan<double> span{};
   for (int k = 0; k < pair_components; ++k) {
-    const double* column = gathered + std::size_t(k) * stride;
+    const double* column = columns[k];
     if (k < 3) span.r12[k] = column;
     else if (k < 9) span.q1[k - 3] = column;
     else span.q2[k - 9] = column;
@@ -376,7 +401,7 @@ void solve_overlap_in_two_passes(const PairSpan<In>& in, const OverlapSpan& out,
                                  const ChunkSettings& settings, const Scratch& scratch,
                                  ChunkCounters& counters) {
   {
-    OverlapKept<Cheap> unused(scratch, 0);  // the first pass keeps nothing
+    OverlapKept<Cheap> unused(scratch);  // the first pass keeps nothing
     for_each_block<Arch, OverlapBlock<Arch, Cheap>::size>(
         in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
           overlap_prefilter_block<Arch, Cheap, In>(span, from, position, real, out, settings,
@@ -387,7 +412,7 @@ void solve_overlap_in_two_passes(const PairSpan<In>& in, const OverlapSpan& out,
   std::uint32_t* positions = nullptr;
   std::size_t count = 0;
   const PairSpan<double> rest = gather_undecided<Arch>(in, n, out.status, scratch, positions, count);
-  OverlapKept<T> kept(scratch, 0);
+  OverlapKept<T> kept(scratch);
   solve_overlap_on<Arch, T, double>(rest, positions, count, out, settings, kept, counters);
 }
 
