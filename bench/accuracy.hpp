@@ -20,7 +20,7 @@ std::vector<long double> oracle_mu2(const PairBatch<T>& pairs);
 
 struct ErrorStatistics {
   double max = 0;
-  double p999 = 0;    // 99.9th percentile (nearest rank)
+  double p999 = 0;  // 99.9th percentile (nearest rank)
   double median = 0;
   std::size_t compared = 0;  // pairs with a valid oracle value
 };

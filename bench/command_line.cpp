@@ -23,8 +23,8 @@ long parse_count(const std::string& text, const std::string& flag, long minimum)
     used = 0;
   }
   if (used == 0 || used != text.size() || value < minimum)
-    throw std::invalid_argument("--" + flag + ": '" + text + "' is not an integer >= " +
-                                std::to_string(minimum));
+    throw std::invalid_argument("--" + flag + ": '" + text +
+                                "' is not an integer >= " + std::to_string(minimum));
   return value;
 }
 

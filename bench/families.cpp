@@ -41,8 +41,8 @@ const V& cached(std::optional<V>& slot, Make make) {
 
 std::vector<long double> checked_oracle_mu2(const std::vector<long double>& oracle,
                                             const char* inputs) {
-  const auto failed = std::count_if(oracle.begin(), oracle.end(),
-                                    [](long double x) { return std::isnan(x); });
+  const auto failed =
+      std::count_if(oracle.begin(), oracle.end(), [](long double x) { return std::isnan(x); });
   if (failed > 0)
     std::cerr << "pwcontact bench: the long double oracle has no valid mu^2 for " << failed
               << " pairs (" << inputs << " inputs); they are left out of the statistics\n";
@@ -53,8 +53,8 @@ std::vector<long double> checked_oracle_mu2(const std::vector<long double>& orac
 double uniform01(std::mt19937_64& engine) { return double(engine() >> 11) * 0x1.0p-53; }
 
 // The pair with r12 multiplied by `scale`, rounded once to double.
-void set_scaled(PairBatch<double>& out, std::size_t i, const PairBatch<double>& from,
-                std::size_t j, long double scale) {
+void set_scaled(PairBatch<double>& out, std::size_t i, const PairBatch<double>& from, std::size_t j,
+                long double scale) {
   ScalarPair p = scalar_pair(from, j);
   for (double& x : p.r12) x = double(x * scale);
   out.set(i, p.r12, p.q1, p.q2);
@@ -77,9 +77,8 @@ const std::vector<long double>& PairSet::oracle() {
 }
 
 const std::vector<long double>& PairSet::float_input_oracle() {
-  return cached(float_input_oracle_, [&] {
-    return checked_oracle_mu2(oracle_mu2(float_pairs()), "float-rounded");
-  });
+  return cached(float_input_oracle_,
+                [&] { return checked_oracle_mu2(oracle_mu2(float_pairs()), "float-rounded"); });
 }
 
 const std::vector<ScalarPair>& PairSet::scalar_sample() {

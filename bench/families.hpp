@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "configuration.hpp"
-#include "pwcontact/batch.hpp"
 #include "fixtures/families.hpp"
+#include "pwcontact/batch.hpp"
 #include "pwcontact/status.hpp"
 
 namespace pwcontact::bench {

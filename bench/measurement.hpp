@@ -25,7 +25,7 @@ inline constexpr const char* median_rel_err = "median_rel_err";
 inline constexpr const char* max_rel_err_double_input = "max_rel_err_double_input";
 inline constexpr const char* fallbacks = "fallbacks";  // per batch call (the whole family)
 inline constexpr const char* fallbacks_per_pair = "fallbacks_per_pair";
-inline constexpr const char* invalid = "invalid";  // pairs without a valid answer
+inline constexpr const char* invalid = "invalid";                    // pairs without a valid answer
 inline constexpr const char* mean_evaluations = "mean_evaluations";  // per pair, in the kernels
 // Overlap answers: the share decided by the prefilter or a certificate, the
 // share found overlapping, and the answers that disagree with the oracle's

@@ -19,10 +19,8 @@ namespace {
 template <class Visit>
 auto with_scalar_path(Path path, Visit&& visit) {
   if (path == Path::brent_baseline)
-    return visit(
-        [](const ScalarPair& p) { return brent_contact_function(p.r12, p.q1, p.q2).mu2; });
-  return visit(
-      [](const ScalarPair& p) { return contact_function<double>(p.r12, p.q1, p.q2).mu2; });
+    return visit([](const ScalarPair& p) { return brent_contact_function(p.r12, p.q1, p.q2).mu2; });
+  return visit([](const ScalarPair& p) { return contact_function<double>(p.r12, p.q1, p.q2).mu2; });
 }
 
 template <class T>
@@ -34,8 +32,7 @@ std::function<BatchReport()> batch_call(const Configuration& c, PairSet& set) {
     const OverlapOutputs out{a.overlap.data(), a.status.data()};
     return [view, out, options] { return overlap_batch(view, out, options); };
   }
-  const ContactOutputs<T> out{a.full<T>().mu2.data(), a.full<T>().lambda.data(),
-                              a.status.data()};
+  const ContactOutputs<T> out{a.full<T>().mu2.data(), a.full<T>().lambda.data(), a.status.data()};
   return [view, out, options] { return contact_function_batch(view, out, options); };
 }
 

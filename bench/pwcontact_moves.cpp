@@ -121,8 +121,11 @@ const World& world(double packing, bool small = false) {
             // take them anywhere): the copies then fill the large box, and a
             // scene without periodic images (FCL's) sees every neighbour of
             // a particle away from the faces.
-            auto wrapped = [&](int k) { return small.centre(k)[i] - l * std::floor(small.centre(k)[i] / l); };
-            const std::array<double, 3> centre = {wrapped(0) + a * l, wrapped(1) + b * l, wrapped(2) + c * l};
+            auto wrapped = [&](int k) {
+              return small.centre(k)[i] - l * std::floor(small.centre(k)[i] / l);
+            };
+            const std::array<double, 3> centre = {wrapped(0) + a * l, wrapped(1) + b * l,
+                                                  wrapped(2) + c * l};
             s.particles.add_axes(centre, mc.semi_axes()[i], mc.orientation()[i]);
             s.semi_axes.push_back(mc.semi_axes()[i]);
             s.orientation.push_back(mc.orientation()[i]);
@@ -205,11 +208,13 @@ void single_benchmark(benchmark::State& state, double packing, bool sweep_order,
   for (auto _ : state) {
     state.PauseTiming();
     MovingScene scene(w.scene.particles, w.scene.box);
-    const std::vector<Trial> trials = make_trials(w, scene, sweep_order, interior, trials_per_iteration);
+    const std::vector<Trial> trials =
+        make_trials(w, scene, sweep_order, interior, trials_per_iteration);
     std::vector<Particle> made;
     made.reserve(trials.size());
     for (const Trial& t : trials)
-      made.push_back(ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
+      made.push_back(
+          ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
     state.ResumeTiming();
     const double start = now();
     for (std::size_t k = 0; k < made.size(); ++k) {
@@ -232,8 +237,8 @@ void single_benchmark(benchmark::State& state, double packing, bool sweep_order,
 // checkerboard's independent domains): batched queries, then move_many.
 void batched_benchmark(benchmark::State& state, double packing, int threads) {
   const World& w = world(packing);
-  const std::string name = "moves/batched/packing:" + packing_name(packing) + "/threads:" +
-                           std::to_string(threads);
+  const std::string name =
+      "moves/batched/packing:" + packing_name(packing) + "/threads:" + std::to_string(threads);
   std::size_t queries = 0, accepted = 0;
   for (auto _ : state) {
     state.PauseTiming();
@@ -256,7 +261,8 @@ void batched_benchmark(benchmark::State& state, double packing, int threads) {
     }
     std::vector<Particle> made;
     for (const Trial& t : trials)
-      made.push_back(ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
+      made.push_back(
+          ParticleStore::particle_axes(t.centre, w.scene.semi_axes[t.index], t.orientation));
     state.ResumeTiming();
     const double start = now();
     std::vector<Particle> batch_trials;
@@ -288,7 +294,8 @@ void batched_benchmark(benchmark::State& state, double packing, int threads) {
     queries += done;
     rates()[name].push_back(double(done) / seconds);
   }
-  state.counters["queries_per_s"] = benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+  state.counters["queries_per_s"] =
+      benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
   state.counters["acceptance"] = queries ? double(accepted) / double(queries) : 0;
 }
 
@@ -297,25 +304,28 @@ void batched_benchmark(benchmark::State& state, double packing, int threads) {
 // on the scene, with 1 or 2 threads.
 void sweep_benchmark(benchmark::State& state, double packing, int threads) {
   const World& w = world(packing);
-  const std::string name = "mc/sweep/packing:" + packing_name(packing) + "/threads:" + std::to_string(threads);
+  const std::string name =
+      "mc/sweep/packing:" + packing_name(packing) + "/threads:" + std::to_string(threads);
   const ParticleStore& s = w.scene.particles;
   std::size_t proposed = 0, accepted = 0;
   for (auto _ : state) {
     state.PauseTiming();
     std::vector<std::array<double, 3>> centre(s.size());
-    for (std::size_t i = 0; i < s.size(); ++i) centre[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
+    for (std::size_t i = 0; i < s.size(); ++i)
+      centre[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
     pwcontact::HardParticleMCOptions options;
     options.threads = threads;
     options.adapt_steps = false;
-    pwcontact::HardParticleMC mc(w.scene.box, std::move(centre), w.scene.semi_axes, w.scene.orientation,
-                                 options);
+    pwcontact::HardParticleMC mc(w.scene.box, std::move(centre), w.scene.semi_axes,
+                                 w.scene.orientation, options);
     state.ResumeTiming();
     const pwcontact::SweepReport r = mc.sweep();
     proposed += r.proposed;
     accepted += r.accepted;
     rates()[name].push_back(double(r.proposed) / r.seconds);
   }
-  state.counters["trials_per_s"] = benchmark::Counter(double(proposed), benchmark::Counter::kIsRate);
+  state.counters["trials_per_s"] =
+      benchmark::Counter(double(proposed), benchmark::Counter::kIsRate);
   state.counters["acceptance"] = proposed ? double(accepted) / double(proposed) : 0;
 }
 
@@ -339,7 +349,8 @@ void skin_benchmark(benchmark::State& state, bool warm) {
     state.PauseTiming();
     std::vector<std::array<double, 3>> centre(n);
     std::vector<std::array<double, 4>> orientation = w.scene.orientation;
-    for (std::size_t i = 0; i < n; ++i) centre[i] = {start.centre(0)[i], start.centre(1)[i], start.centre(2)[i]};
+    for (std::size_t i = 0; i < n; ++i)
+      centre[i] = {start.centre(0)[i], start.centre(1)[i], start.centre(2)[i]};
     pwcontact::SkinOptions options;
     options.cutoff = 1.3;
     options.skin = 0.1;
@@ -352,7 +363,8 @@ void skin_benchmark(benchmark::State& state, bool warm) {
     for (int step = 0; step < 6; ++step) {
       ParticleStore s;
       s.reserve(n);
-      for (std::size_t i = 0; i < n; ++i) s.add_axes(centre[i], w.scene.semi_axes[i], orientation[i]);
+      for (std::size_t i = 0; i < n; ++i)
+        s.add_axes(centre[i], w.scene.semi_axes[i], orientation[i]);
       const pwcontact::SkinReport r = list.update(s, w.scene.box, pairs);
       // The first step builds the list, the second solves it cold either way.
       if (step >= 2 && !r.rebuilt) {
@@ -365,10 +377,12 @@ void skin_benchmark(benchmark::State& state, bool warm) {
         for (double& x : centre[i]) x += 5e-4 * unit(engine);
         const double half = 2.5e-4 * unit(engine);
         double axis[3] = {unit(engine), unit(engine), unit(engine)};
-        const double norm = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]) + 1e-300;
-        orientation[i] = multiply({std::cos(half), std::sin(half) * axis[0] / norm,
-                                   std::sin(half) * axis[1] / norm, std::sin(half) * axis[2] / norm},
-                                  orientation[i]);
+        const double norm =
+            std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]) + 1e-300;
+        orientation[i] =
+            multiply({std::cos(half), std::sin(half) * axis[0] / norm,
+                      std::sin(half) * axis[1] / norm, std::sin(half) * axis[2] / norm},
+                     orientation[i]);
       }
     }
     state.ResumeTiming();
@@ -399,7 +413,8 @@ void fcl_benchmark(benchmark::State& state, double packing) {
       const auto& a = w.scene.semi_axes[i];
       auto geometry = std::make_shared<fcl::Ellipsoidd>(a[0], a[1], a[2]);
       objects.push_back(std::make_unique<fcl::CollisionObjectd>(
-          geometry, transform({s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]}, w.scene.orientation[i])));
+          geometry,
+          transform({s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]}, w.scene.orientation[i])));
       objects.back()->setUserData(reinterpret_cast<void*>(i));
       pointers.push_back(objects.back().get());
     }
@@ -431,15 +446,16 @@ void fcl_benchmark(benchmark::State& state, double packing) {
       manager.update(o);
       const double collide_start = now();
       Query query{o};
-      manager.collide(o, &query, [](fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
-        Query& q = *static_cast<Query*>(data);
-        if (a == b) return false;
-        fcl::CollisionRequestd request;
-        fcl::CollisionResultd result;
-        fcl::collide(a, b, request, result);
-        q.hit = result.isCollision();
-        return q.hit;  // stop at the first contact
-      });
+      manager.collide(o, &query,
+                      [](fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
+                        Query& q = *static_cast<Query*>(data);
+                        if (a == b) return false;
+                        fcl::CollisionRequestd request;
+                        fcl::CollisionResultd result;
+                        fcl::collide(a, b, request, result);
+                        q.hit = result.isCollision();
+                        return q.hit;  // stop at the first contact
+                      });
       const double end = now();
       fcl_seconds += end - start;
       collide_seconds += end - collide_start;
@@ -480,7 +496,8 @@ void fcl_benchmark(benchmark::State& state, double packing) {
     }
     state.ResumeTiming();
   }
-  state.counters["queries_per_s"] = benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+  state.counters["queries_per_s"] =
+      benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
 }
 #endif
 
@@ -495,14 +512,18 @@ void print_summary() {
   const double warm = median(solve_seconds()["skin/warm/packing:0.5"]);
   const double cold = median(solve_seconds()["skin/cold/packing:0.5"]);
   if (!std::isnan(warm) && !std::isnan(cold))
-    std::printf("  neighbour list kept across steps: solve %.1f ms warm, %.1f ms cold: warm start "
-                "saves %.0f %% (target >= 30 %%): %s\n",
-                warm * 1e3, cold * 1e3, 100 * (1 - warm / cold), 1 - warm / cold >= 0.3 ? "met" : "NOT met");
+    std::printf(
+        "  neighbour list kept across steps: solve %.1f ms warm, %.1f ms cold: warm start "
+        "saves %.0f %% (target >= 30 %%): %s\n",
+        warm * 1e3, cold * 1e3, 100 * (1 - warm / cold),
+        1 - warm / cold >= 0.3 ? "met" : "NOT met");
   const double warm_update = median(solve_seconds()["skin/warm/packing:0.5/update"]);
   const double cold_update = median(solve_seconds()["skin/cold/packing:0.5/update"]);
   if (!std::isnan(warm_update) && !std::isnan(cold_update))
-    std::printf("  neighbour list kept across steps: whole update (criterion, gather, solve, output) "
-                "%.1f ms warm, %.1f ms cold\n", warm_update * 1e3, cold_update * 1e3);
+    std::printf(
+        "  neighbour list kept across steps: whole update (criterion, gather, solve, output) "
+        "%.1f ms warm, %.1f ms cold\n",
+        warm_update * 1e3, cold_update * 1e3);
   for (const auto& [name, r] : rates())
     std::printf("  %-40s %8.3f M queries/s (%zu runs)\n", name.c_str(), median(r) / 1e6, r.size());
   for (const char* p : {"0.3", "0.5"}) {
@@ -519,35 +540,40 @@ void print_summary() {
     const double one = get("moves/batched/" + packing + "/threads:1");
     const double two = get("moves/batched/" + packing + "/threads:2");
     if (!std::isnan(single))
-      std::printf("  %s: single queries %.2f M/s in sweep order, %.2f M/s in random order "
-                  "(target >= 3 M/s per core): %s\n",
-                  packing.c_str(), single / 1e6, random / 1e6, single >= 3e6 ? "met" : "NOT met");
+      std::printf(
+          "  %s: single queries %.2f M/s in sweep order, %.2f M/s in random order "
+          "(target >= 3 M/s per core): %s\n",
+          packing.c_str(), single / 1e6, random / 1e6, single >= 3e6 ? "met" : "NOT met");
     if (!std::isnan(fcl))
-      std::printf("  %s: against FCL on the same interior trials: %.1fx (target >= 20x): %s; "
-                  "FCL disagrees with the exact answer on %.0f of %zu trials (%.0f of them within "
-                  "1e-9 of tangency)\n",
-                  packing.c_str(), interior / fcl, interior / fcl >= 20 ? "met" : "NOT met",
-                  facts()["fcl_disagreements/" + packing], fcl_trials,
-                  facts()["fcl_disagreements_near/" + packing]);
+      std::printf(
+          "  %s: against FCL on the same interior trials: %.1fx (target >= 20x): %s; "
+          "FCL disagrees with the exact answer on %.0f of %zu trials (%.0f of them within "
+          "1e-9 of tangency)\n",
+          packing.c_str(), interior / fcl, interior / fcl >= 20 ? "met" : "NOT met",
+          facts()["fcl_disagreements/" + packing], fcl_trials,
+          facts()["fcl_disagreements_near/" + packing]);
     if (facts()["fcl_disagreements/" + packing] > 0)
-      std::printf("  %s: of FCL's disagreements, %.0f say apart where the pair overlaps; the "
-                  "nearest pair's |mu^2 - 1| min %.3g, median %.3g, max %.3g\n",
-                  packing.c_str(), facts()["fcl_missed/" + packing],
-                  facts()["fcl_gap_min/" + packing], facts()["fcl_gap_median/" + packing],
-                  facts()["fcl_gap_max/" + packing]);
+      std::printf(
+          "  %s: of FCL's disagreements, %.0f say apart where the pair overlaps; the "
+          "nearest pair's |mu^2 - 1| min %.3g, median %.3g, max %.3g\n",
+          packing.c_str(), facts()["fcl_missed/" + packing], facts()["fcl_gap_min/" + packing],
+          facts()["fcl_gap_median/" + packing], facts()["fcl_gap_max/" + packing]);
     if (!std::isnan(fcl_collide))
-      std::printf("  %s: against FCL's collide alone (its update, an O(N) re-balance, left out): "
-                  "%.1fx\n", packing.c_str(), interior / fcl_collide);
+      std::printf(
+          "  %s: against FCL's collide alone (its update, an O(N) re-balance, left out): "
+          "%.1fx\n",
+          packing.c_str(), interior / fcl_collide);
     if (!std::isnan(two))
       std::printf("  %s: batched rounds (every fourth cell), 2 threads over 1: %.2fx\n",
                   packing.c_str(), two / one);
     const double sweep1 = get("mc/sweep/" + packing + "/threads:1");
     const double sweep2 = get("mc/sweep/" + packing + "/threads:2");
     if (!std::isnan(sweep2))
-      std::printf("  %s: Monte Carlo checkerboard sweep %.2f M trials/s with 1 thread, %.2f with 2: "
-                  "%.2fx (target >= 1.8x): %s\n",
-                  packing.c_str(), sweep1 / 1e6, sweep2 / 1e6, sweep2 / sweep1,
-                  sweep2 / sweep1 >= 1.8 ? "met" : "NOT met");
+      std::printf(
+          "  %s: Monte Carlo checkerboard sweep %.2f M trials/s with 1 thread, %.2f with 2: "
+          "%.2fx (target >= 1.8x): %s\n",
+          packing.c_str(), sweep1 / 1e6, sweep2 / 1e6, sweep2 / sweep1,
+          sweep2 / sweep1 >= 1.8 ? "met" : "NOT met");
   }
 }
 
@@ -579,13 +605,15 @@ int main(int argc, char** argv) {
   }
   for (double packing : {0.3, 0.5})
     for (int threads : {1, 2})
-      benchmark::RegisterBenchmark(("mc/sweep/packing:" + packing_name(packing) + "/threads:" +
-                                    std::to_string(threads)).c_str(),
-                                   sweep_benchmark, packing, threads)
+      benchmark::RegisterBenchmark(
+          ("mc/sweep/packing:" + packing_name(packing) + "/threads:" + std::to_string(threads))
+              .c_str(),
+          sweep_benchmark, packing, threads)
           ->Unit(benchmark::kMillisecond);
   for (bool warm : {true, false})
-    benchmark::RegisterBenchmark((std::string("skin/") + (warm ? "warm" : "cold") + "/packing:0.5").c_str(),
-                                 skin_benchmark, warm)
+    benchmark::RegisterBenchmark(
+        (std::string("skin/") + (warm ? "warm" : "cold") + "/packing:0.5").c_str(), skin_benchmark,
+        warm)
         ->Unit(benchmark::kMillisecond)
         ->Iterations(1);
   benchmark::RunSpecifiedBenchmarks();

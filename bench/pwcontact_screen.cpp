@@ -35,8 +35,8 @@
 #include <stdlib.h>  // mkdtemp
 
 #include <algorithm>
-#include <chrono>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -67,13 +67,13 @@ const SpheroidScene& scene(const std::string& asked, std::size_t n) {
   auto found = scenes.find({kind, n});
   if (found == scenes.end()) {
     const double max_aspect = kind == "spheres" ? 1 : 3;
-    found = scenes
-                .emplace(std::make_pair(kind, n),
-                         kind == "ellipses"
-                             ? pwcontact::ellipse_scene(n, scene_seed, 0.5, 3)
-                             : pwcontact::spheroid_scene(n, scene_seed, 0.3, max_aspect,
-                                                         kind == "identical"))
-                .first;
+    found =
+        scenes
+            .emplace(std::make_pair(kind, n),
+                     kind == "ellipses" ? pwcontact::ellipse_scene(n, scene_seed, 0.5, 3)
+                                        : pwcontact::spheroid_scene(n, scene_seed, 0.3, max_aspect,
+                                                                    kind == "identical"))
+            .first;
   }
   return found->second;
 }
@@ -86,8 +86,8 @@ std::map<std::string, std::vector<double>>& seconds_by_name() {
 
 std::string name_of(const char* path, std::size_t n, int threads,
                     const std::string& kind = "spheroids") {
-  return std::string(path) + "/" + kind + "/n:" + std::to_string(n) + "/threads:" +
-         std::to_string(threads);
+  return std::string(path) + "/" + kind + "/n:" + std::to_string(n) +
+         "/threads:" + std::to_string(threads);
 }
 
 double now() {
@@ -97,10 +97,10 @@ double now() {
 void screen_benchmark(benchmark::State& state, const std::string& kind, std::size_t n,
                       int threads) {
   const SpheroidScene& s = scene(kind, n);
-  const pwcontact::Box box =
-      kind == "triclinic"
-          ? pwcontact::Box::triclinic(s.box.length[0], s.box.length[1], s.box.length[2], 0.3, 0.2, 0.1)
-          : s.box;
+  const pwcontact::Box box = kind == "triclinic"
+                                 ? pwcontact::Box::triclinic(s.box.length[0], s.box.length[1],
+                                                             s.box.length[2], 0.3, 0.2, 0.1)
+                                 : s.box;
   ScreenOptions options;
   options.threads = threads;
   ScreenedPairs pairs;
@@ -144,7 +144,8 @@ const SceneFiles& scene_files(std::size_t n) {
   auto found = files.find(n);
   if (found != files.end()) return found->second;
   SceneFiles& f = files[n];
-  std::string pattern = (std::filesystem::temp_directory_path() / "pwcontact_screen.XXXXXX").string();
+  std::string pattern =
+      (std::filesystem::temp_directory_path() / "pwcontact_screen.XXXXXX").string();
   if (!mkdtemp(pattern.data())) throw std::runtime_error("cannot create a temporary directory");
   f.directory = pattern;
   f.gsd = (f.directory / "scene.gsd").string();
@@ -158,8 +159,9 @@ const SceneFiles& scene_files(std::size_t n) {
     const double equatorial = 0.5 / std::cbrt(aspect);
     axes[t] = {equatorial, equatorial, equatorial * aspect};
     char json[160];
-    std::snprintf(json, sizeof json, "{\"type\": \"Ellipsoid\", \"a\": %.17g, \"b\": %.17g, \"c\": %.17g}",
-                  axes[t][0], axes[t][1], axes[t][2]);
+    std::snprintf(json, sizeof json,
+                  "{\"type\": \"Ellipsoid\", \"a\": %.17g, \"b\": %.17g, \"c\": %.17g}", axes[t][0],
+                  axes[t][1], axes[t][2]);
     names.push_back("S" + std::to_string(t));
     shapes.push_back(json);
   }
@@ -181,7 +183,8 @@ const SceneFiles& scene_files(std::size_t n) {
   {
     std::ofstream out(f.gsd, std::ios::binary);
     pwcontact::GsdWriter writer(out);
-    writer.write("configuration/box", std::vector<float>{float(length), float(length), float(length), 0, 0, 0}, 6);
+    writer.write("configuration/box",
+                 std::vector<float>{float(length), float(length), float(length), 0, 0, 0}, 6);
     writer.write("particles/N", std::vector<std::uint32_t>{std::uint32_t(n)}, 1);
     writer.write("particles/types", names);
     writer.write("particles/typeid", type_id, n);
@@ -207,11 +210,12 @@ const SceneFiles& scene_files(std::size_t n) {
 // kept for the summary.
 void cli_benchmark(benchmark::State& state, const std::string& format, std::size_t n, int threads) {
   const SceneFiles& files = scene_files(n);
-  const std::filesystem::path pairs = files.directory / "pairs.txt", log = files.directory / "log.txt";
-  const std::string command = std::string("'") + PWCONTACT_CLI + "' screen --threads " +
-                              std::to_string(threads) +
-                              (format == "text" ? " --format axes '" + files.text : " '" + files.gsd) +
-                              "' -o '" + pairs.string() + "' 2>'" + log.string() + "'";
+  const std::filesystem::path pairs = files.directory / "pairs.txt",
+                              log = files.directory / "log.txt";
+  const std::string command =
+      std::string("'") + PWCONTACT_CLI + "' screen --threads " + std::to_string(threads) +
+      (format == "text" ? " --format axes '" + files.text : " '" + files.gsd) + "' -o '" +
+      pairs.string() + "' 2>'" + log.string() + "'";
   for (auto _ : state) {
     const double start = now();
     const int status = std::system(command.c_str());
@@ -229,8 +233,10 @@ void cli_benchmark(benchmark::State& state, const std::string& format, std::size
     if (at != std::string::npos) {
       double value = std::atof(text.c_str() + at + 9);
       const std::size_t unit = text.find_first_of("mus", at + 9);
-      if (text.compare(unit, 2, "ms") == 0) value *= 1e-3;
-      else if (text.compare(unit, 2, "us") == 0) value *= 1e-6;
+      if (text.compare(unit, 2, "ms") == 0)
+        value *= 1e-3;
+      else if (text.compare(unit, 2, "us") == 0)
+        value *= 1e-6;
       seconds_by_name()[name_of("reading", n, threads, format)].push_back(value);
     }
   }
@@ -305,16 +311,18 @@ void print_summary() {
       std::printf(" %zu: %.3f us (%+.1f %%)", p.first, p.second * 1e6, (p.second / mean - 1) * 100);
       worst = std::max(worst, std::abs(p.second / mean - 1));
     }
-    std::printf("\n  %-8s cost linear in N: largest deviation from the mean %.1f %% (target <= 25 %%)\n",
-                worst <= 0.25 ? "met" : "NOT MET", worst * 100);
+    std::printf(
+        "\n  %-8s cost linear in N: largest deviation from the mean %.1f %% (target <= 25 %%)\n",
+        worst <= 0.25 ? "met" : "NOT MET", worst * 100);
   }
   const double triclinic = time_of("screen", 1000000, 2, "triclinic"),
                orthorhombic = time_of("screen", 1000000, 2);
   if (triclinic > 0 && orthorhombic > 0)
-    std::printf("  %-8s triclinic box (tilts 0.3, 0.2, 0.1), 1,000,000 spheroids: %.3f s, %.2f x "
-                "the orthorhombic box's %.3f s (target <= 1.15)\n",
-                triclinic <= 1.15 * orthorhombic ? "met" : "NOT MET", triclinic,
-                triclinic / orthorhombic, orthorhombic);
+    std::printf(
+        "  %-8s triclinic box (tilts 0.3, 0.2, 0.1), 1,000,000 spheroids: %.3f s, %.2f x "
+        "the orthorhombic box's %.3f s (target <= 1.15)\n",
+        triclinic <= 1.15 * orthorhombic ? "met" : "NOT MET", triclinic, triclinic / orthorhombic,
+        orthorhombic);
   const double ellipses = time_of("screen", 1000000, 2, "ellipses");
   if (ellipses > 0)
     std::printf("  %-8s 1,000,000 ellipses in 2D, packing fraction 0.5: %.3f s (target <= 0.3 s)\n",
@@ -324,17 +332,19 @@ void print_summary() {
     const double reading = time_of("reading", 1000000, 2, format);
     const double target = std::string(format) == "gsd" ? 1.0 : 1.5;
     if (total > 0)
-      std::printf("  %-8s pwcontact screen, 1,000,000 spheroids from %s, end to end: %.3f s, of "
-                  "which reading %.3f s (target <= %.1f s)\n",
-                  total <= target ? "met" : "NOT MET",
-                  std::string(format) == "gsd" ? "a GSD file" : "1,000,000 lines of text", total,
-                  reading, target);
+      std::printf(
+          "  %-8s pwcontact screen, 1,000,000 spheroids from %s, end to end: %.3f s, of "
+          "which reading %.3f s (target <= %.1f s)\n",
+          total <= target ? "met" : "NOT MET",
+          std::string(format) == "gsd" ? "a GSD file" : "1,000,000 lines of text", total, reading,
+          target);
   }
   const double ours = time_of("screen", 100000, 2), brent = time_of("brent_pipeline", 100000, 2);
   if (ours > 0 && brent > 0)
-    std::printf("  %-8s end to end, 100,000 spheroids: brent pipeline %.3f s / screen %.4f s = "
-                "%.1fx (target >= 30x)\n",
-                brent / ours >= 30 ? "met" : "NOT MET", brent, ours, brent / ours);
+    std::printf(
+        "  %-8s end to end, 100,000 spheroids: brent pipeline %.3f s / screen %.4f s = "
+        "%.1fx (target >= 30x)\n",
+        brent / ours >= 30 ? "met" : "NOT MET", brent, ours, brent / ours);
 }
 
 }  // namespace
@@ -355,8 +365,8 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond);
 #ifdef PWCONTACT_CLI
   for (const char* format : {"gsd", "text"})
-    benchmark::RegisterBenchmark(name_of("pwcontact_screen", 1000000, 2, format).c_str(), cli_benchmark,
-                                 std::string(format), std::size_t(1000000), 2)
+    benchmark::RegisterBenchmark(name_of("pwcontact_screen", 1000000, 2, format).c_str(),
+                                 cli_benchmark, std::string(format), std::size_t(1000000), 2)
         ->UseManualTime()
         ->Unit(benchmark::kMillisecond);
 #endif

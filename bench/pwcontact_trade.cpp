@@ -104,7 +104,8 @@ const char* const help_text =
     "  --filter=REGEX              only configurations whose name matches (brent_baseline is\n"
     "                              always timed), e.g. 'batch_(double|mixed)/pw85'\n"
     "  --csv=PATH --markdown=PATH --plot=PATH   output files (default: trade.csv, trade.md,\n"
-    "                              trade.png in " PWCONTACT_TRADE_OUTPUT_DIR ");\n"
+    "                              trade.png in " PWCONTACT_TRADE_OUTPUT_DIR
+    ");\n"
     "                              the plot's gnuplot script and data go beside the CSV\n"
     "  --no-plot                   write no plot (gnuplot is then not needed)\n"
     "  --label=TEXT                printed in the headers, e.g. the commit measured\n"
@@ -297,8 +298,8 @@ std::vector<Measurement> measure(const std::vector<Configuration>& swept, const 
   std::vector<Measurement> out;
   for (const Configuration& c : timed) {
     const std::vector<double>& r = rates[c.name()];
-    Measurement m{c, median(r), coefficient_of_variation(r),
-                  *std::max_element(r.begin(), r.end()), counters[c.settings_name()]};
+    Measurement m{c, median(r), coefficient_of_variation(r), *std::max_element(r.begin(), r.end()),
+                  counters[c.settings_name()]};
     m.counters[counter::items_per_second] = m.pairs_per_second;
     out.push_back(std::move(m));
   }
@@ -326,14 +327,16 @@ int run(int argc, char** argv) {
 
   const Isa isa = resolve_isa(Isa::automatic);
   const std::vector<Configuration> swept = sweep(settings, isa);
-  std::cerr << "pwcontact_trade: " << swept.size() << " configurations, "
-            << settings.repetitions << " timing rounds, isa " << isa_name(isa) << '\n';
+  std::cerr << "pwcontact_trade: " << swept.size() << " configurations, " << settings.repetitions
+            << " timing rounds, isa " << isa_name(isa) << '\n';
   Families families(settings.sizes);
   const std::vector<Measurement> measurements = measure(swept, settings, families);
   const Table table(measurements);
 
-  const TradeRun run{settings.label, isa,           settings.repetitions, settings.min_time,
-                     settings.threads, settings.sizes, settings.families};
+  const TradeRun run{settings.label,       isa,
+                     settings.repetitions, settings.min_time,
+                     settings.threads,     settings.sizes,
+                     settings.families};
   write_csv(settings.csv, table, run);
   write_markdown(settings.markdown, table, run);
   std::cout << "Targets, fastest measured setting within each target's accuracy (1 thread)\n";

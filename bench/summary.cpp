@@ -14,26 +14,24 @@ constexpr double not_measured = std::numeric_limits<double>::quiet_NaN();
 
 void print_table(std::ostream& out, const Table& table) {
   std::size_t width = 13;
-  for (const Measurement& m : table.rows())
-    width = std::max(width, m.configuration.name().size());
+  for (const Measurement& m : table.rows()) width = std::max(width, m.configuration.name().size());
   const int w = int(width);
   constexpr const char* row = "%-*s %10s %6s %8s %10s %10s %10s %13s %10s %10s %8s %10s %10s\n";
   out << format(row, w, "configuration", "pairs/s", "cv", "x brent", "max err", "p99.9 err",
-                "median err", "max err (dbl)", "fallb/pair", "evals/pair", "invalid",
-                "misclass.", "near-tang.");
+                "median err", "max err (dbl)", "fallb/pair", "evals/pair", "invalid", "misclass.",
+                "near-tang.");
   for (const Measurement& m : table.rows())
-    out << format(row, w, m.configuration.name().c_str(), cell(m.pairs_per_second, "%.3g").c_str(),
-                  cell(100 * m.pairs_per_second_cv, "%.0f%%").c_str(),
-                  cell(table.speedup(m), "%.2f").c_str(),
-                  cell(m.counter(counter::max_rel_err)).c_str(),
-                  cell(m.counter(counter::p999_rel_err)).c_str(),
-                  cell(m.counter(counter::median_rel_err)).c_str(),
-                  cell(m.counter(counter::max_rel_err_double_input)).c_str(),
-                  cell(m.counter(counter::fallbacks_per_pair), "%.3g").c_str(),
-                  cell(m.counter(counter::mean_evaluations), "%.2f").c_str(),
-                  cell(m.counter(counter::invalid), "%.0f").c_str(),
-                  misclassification_cell(m, false).c_str(),
-                  misclassification_cell(m, true).c_str());
+    out << format(
+        row, w, m.configuration.name().c_str(), cell(m.pairs_per_second, "%.3g").c_str(),
+        cell(100 * m.pairs_per_second_cv, "%.0f%%").c_str(), cell(table.speedup(m), "%.2f").c_str(),
+        cell(m.counter(counter::max_rel_err)).c_str(),
+        cell(m.counter(counter::p999_rel_err)).c_str(),
+        cell(m.counter(counter::median_rel_err)).c_str(),
+        cell(m.counter(counter::max_rel_err_double_input)).c_str(),
+        cell(m.counter(counter::fallbacks_per_pair), "%.3g").c_str(),
+        cell(m.counter(counter::mean_evaluations), "%.2f").c_str(),
+        cell(m.counter(counter::invalid), "%.0f").c_str(), misclassification_cell(m, false).c_str(),
+        misclassification_cell(m, true).c_str());
 }
 
 void print_thread_scaling(std::ostream& out, const Table& table) {
@@ -42,8 +40,8 @@ void print_thread_scaling(std::ostream& out, const Table& table) {
     const Configuration& c = m.configuration;
     if (!is_batch(c.path) || c.threads == 1 || !table.find(c.with_threads(1))) continue;
     const Configuration one_thread = c.with_threads(1);
-    out << format("  %-60s threads:%d / threads:1 = %.2f%s\n", one_thread.name().c_str(),
-                  c.threads, table.thread_scaling(one_thread, c.threads),
+    out << format("  %-60s threads:%d / threads:1 = %.2f%s\n", one_thread.name().c_str(), c.threads,
+                  table.thread_scaling(one_thread, c.threads),
                   table.best_scaling_note(one_thread, c.threads).c_str());
     ++printed;
   }
@@ -64,11 +62,11 @@ void print_iteration_choice(std::ostream& out, const Table& table, Isa default_i
                          : "no fixed iteration count measured\n");
       continue;
     }
-    line += format("fastest iterations:%d, %.3g pairs/s = %sx brent_baseline, "
-                   "%.3g fallbacks per pair",
-                   best->configuration.iterations, best->pairs_per_second,
-                   cell(table.speedup(*best), "%.1f").c_str(),
-                   best->counter(counter::fallbacks_per_pair));
+    line += format(
+        "fastest iterations:%d, %.3g pairs/s = %sx brent_baseline, "
+        "%.3g fallbacks per pair",
+        best->configuration.iterations, best->pairs_per_second,
+        cell(table.speedup(*best), "%.1f").c_str(), best->counter(counter::fallbacks_per_pair));
     if (const Measurement* d = table.find(defaults))
       line += format("; default (automatic) %.3g pairs/s, fastest / default = %.2f",
                      d->pairs_per_second, best->pairs_per_second / d->pairs_per_second);
@@ -79,8 +77,7 @@ void print_iteration_choice(std::ostream& out, const Table& table, Isa default_i
 }  // namespace
 
 SummaryReporter::SummaryReporter(benchmark::BenchmarkReporter* display,
-                                 const std::vector<Configuration>& configurations,
-                                 Isa default_isa)
+                                 const std::vector<Configuration>& configurations, Isa default_isa)
     : display_(display), default_isa_(default_isa) {
   for (const Configuration& c : configurations) {
     order_.push_back(c.name());
@@ -135,18 +132,19 @@ std::vector<Measurement> SummaryReporter::measurements() const {
 
 void SummaryReporter::Finalize() {
   display_->Finalize();
-  std::ostream& out = dynamic_cast<benchmark::ConsoleReporter*>(display_) ? GetOutputStream()
-                                                                          : GetErrorStream();
+  std::ostream& out =
+      dynamic_cast<benchmark::ConsoleReporter*>(display_) ? GetOutputStream() : GetErrorStream();
   print_summary(out, measurements(), default_isa_, repetitions_);
 }
 
-void print_summary(std::ostream& out, const std::vector<Measurement>& measurements,
-                   Isa default_isa, long repetitions) {
+void print_summary(std::ostream& out, const std::vector<Measurement>& measurements, Isa default_isa,
+                   long repetitions) {
   const Table table(measurements);
-  out << format("\nSummary (%s; real time; errors: relative error of mu^2 against the long double "
-                "oracle on the inputs each path solved, \"dbl\" against the double inputs)\n",
-                repetitions > 1 ? format("medians of %ld repetitions", repetitions).c_str()
-                                : "single runs, no repetitions");
+  out << format(
+      "\nSummary (%s; real time; errors: relative error of mu^2 against the long double "
+      "oracle on the inputs each path solved, \"dbl\" against the double inputs)\n",
+      repetitions > 1 ? format("medians of %ld repetitions", repetitions).c_str()
+                      : "single runs, no repetitions");
   out << "(misclass.: overlap answers on the family that disagree with the oracle's mu^2 < 1, "
          "farther from tangency than |mu^2 - 1| = 1e-9 / closer; near-tang.: the same for "
          "overlap answers or mu^2 < 1 of full answers on the family's near-tangent set.)\n"
@@ -155,9 +153,10 @@ void print_summary(std::ostream& out, const std::vector<Measurement>& measuremen
   print_table(out, table);
   out << "\nThread scaling (same configuration, more threads / 1 thread)\n";
   print_thread_scaling(out, table);
-  out << format("\nTargets (1 thread; default settings are isa:auto = isa:%s and iterations:0 = "
-                "automatic)\n",
-                isa_name(default_isa));
+  out << format(
+      "\nTargets (1 thread; default settings are isa:auto = isa:%s and iterations:0 = "
+      "automatic)\n",
+      isa_name(default_isa));
   print_targets(out, table, default_isa);
   out << format("\nFixed iteration counts swept on isa:%s, 1 thread\n", isa_name(default_isa));
   print_iteration_choice(out, table, default_isa);

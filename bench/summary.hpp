@@ -51,7 +51,7 @@ class SummaryReporter : public benchmark::BenchmarkReporter {
 };
 
 // The summary itself, for any list of measurements.
-void print_summary(std::ostream& out, const std::vector<Measurement>& measurements,
-                   Isa default_isa, long repetitions);
+void print_summary(std::ostream& out, const std::vector<Measurement>& measurements, Isa default_isa,
+                   long repetitions);
 
 }  // namespace pwcontact::bench

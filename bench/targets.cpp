@@ -30,17 +30,17 @@ std::string misclassification_text(const Measurement& m, const char* beyond, con
 
 std::string accuracy_text(const Target& t, const Measurement& m) {
   if (is_overlap(t.configuration.path))
-    return format("misclassified %s 1e-9 of tangency on the family, %s on %.0f near-tangent "
-                  "pairs (target: none beyond)",
-                  misclassification_text(m, counter::misclassified_beyond,
-                                         counter::misclassified_within)
-                      .c_str(),
-                  misclassification_text(m, counter::near_tangent_misclassified_beyond,
-                                         counter::near_tangent_misclassified_within)
-                      .c_str(),
-                  m.counter(counter::near_tangent_pairs));
-  std::string text = format("max rel err %.2e (target <= %g)", m.counter(counter::max_rel_err),
-                            t.max_rel_err);
+    return format(
+        "misclassified %s 1e-9 of tangency on the family, %s on %.0f near-tangent "
+        "pairs (target: none beyond)",
+        misclassification_text(m, counter::misclassified_beyond, counter::misclassified_within)
+            .c_str(),
+        misclassification_text(m, counter::near_tangent_misclassified_beyond,
+                               counter::near_tangent_misclassified_within)
+            .c_str(),
+        m.counter(counter::near_tangent_pairs));
+  std::string text =
+      format("max rel err %.2e (target <= %g)", m.counter(counter::max_rel_err), t.max_rel_err);
   const double error_double_input = m.counter(counter::max_rel_err_double_input);
   if (!std::isnan(error_double_input))
     text += format("; %.2e against the double inputs", error_double_input);
@@ -53,8 +53,8 @@ std::string target_line(const Target& t, const Table& table, const Measurement& 
   const bool accurate = within_accuracy(t, m);
   const bool met = accurate && (!speed_target(t) || speedup >= t.min_speedup);
   const bool decided = !speed_target(t) || !std::isnan(speedup);
-  std::string line = format("  %-8s %s: ", decided ? verdict(met) : "-",
-                            m.configuration.name().c_str());
+  std::string line =
+      format("  %-8s %s: ", decided ? verdict(met) : "-", m.configuration.name().c_str());
   if (speed_target(t))
     line += format("%s (target >= %gx), ", speedup_text(speedup).c_str(), t.min_speedup);
   else

@@ -83,10 +83,11 @@ const char* family_description(Family family) {
 std::string run_description(const TradeRun& run) {
   std::string threads;
   for (int t : run.threads) threads += (threads.empty() ? "" : ", ") + std::to_string(t);
-  return format("isa %s; medians of %d repetitions of at least %.3g s of calls each, %s "
-                "thread(s); %zu pairs per generated family, %zu per near-tangent set",
-                isa_name(run.isa), run.repetitions, run.min_time, threads.c_str(),
-                run.sizes.generated, run.sizes.near_tangent);
+  return format(
+      "isa %s; medians of %d repetitions of at least %.3g s of calls each, %s "
+      "thread(s); %zu pairs per generated family, %zu per near-tangent set",
+      isa_name(run.isa), run.repetitions, run.min_time, threads.c_str(), run.sizes.generated,
+      run.sizes.near_tangent);
 }
 
 // ---------------------------------------------------------------------------
@@ -106,13 +107,20 @@ std::string csv_text(const std::string& text) {
 }
 
 const char* const csv_counters[] = {
-    counter::max_rel_err,          counter::p999_rel_err,
-    counter::median_rel_err,       counter::max_rel_err_double_input,
-    counter::fallbacks_per_pair,   counter::mean_evaluations,
-    counter::decided_early_per_pair, counter::overlapping_per_pair,
-    counter::misclassified_beyond, counter::misclassified_within,
-    counter::near_tangent_pairs,   counter::near_tangent_misclassified_beyond,
-    counter::near_tangent_misclassified_within, counter::invalid,
+    counter::max_rel_err,
+    counter::p999_rel_err,
+    counter::median_rel_err,
+    counter::max_rel_err_double_input,
+    counter::fallbacks_per_pair,
+    counter::mean_evaluations,
+    counter::decided_early_per_pair,
+    counter::overlapping_per_pair,
+    counter::misclassified_beyond,
+    counter::misclassified_within,
+    counter::near_tangent_pairs,
+    counter::near_tangent_misclassified_beyond,
+    counter::near_tangent_misclassified_within,
+    counter::invalid,
 };
 
 // ---------------------------------------------------------------------------
@@ -145,8 +153,7 @@ void markdown_family_table(std::ostream& out, const Table& table, const TradeRun
         << cell(m->counter(counter::fallbacks_per_pair), "%.3g") << " | "
         << cell(m->counter(counter::mean_evaluations), "%.2f") << " | "
         << cell(m->counter(counter::decided_early_per_pair), "%.3f") << " | "
-        << misclassification_cell(*m, false) << " | " << misclassification_cell(*m, true)
-        << " |\n";
+        << misclassification_cell(*m, false) << " | " << misclassification_cell(*m, true) << " |\n";
   }
 }
 
@@ -171,14 +178,13 @@ void markdown_best_settings(std::ostream& out, const Table& table, const TradeRu
       if (!best) continue;
       const Measurement* defaults = automatic_in_group(table, family, group);
       const double brent = brent_rate(table, family);
-      out << format("| %s | %s | `%s` | %s | %s | %s | %s | %s | %s |\n", family_name(family),
-                    group.label().c_str(), best->configuration.settings_name().c_str(),
-                    speed_cells(best, brent).c_str(),
-                    counter_cell(best, counter::max_rel_err).c_str(),
-                    counter_cell(best, counter::p999_rel_err).c_str(),
-                    misclassification_cell(*best, true).c_str(),
-                    speed_cells(defaults, brent).c_str(),
-                    counter_cell(defaults, counter::max_rel_err).c_str());
+      out << format(
+          "| %s | %s | `%s` | %s | %s | %s | %s | %s | %s |\n", family_name(family),
+          group.label().c_str(), best->configuration.settings_name().c_str(),
+          speed_cells(best, brent).c_str(), counter_cell(best, counter::max_rel_err).c_str(),
+          counter_cell(best, counter::p999_rel_err).c_str(),
+          misclassification_cell(*best, true).c_str(), speed_cells(defaults, brent).c_str(),
+          counter_cell(defaults, counter::max_rel_err).c_str());
     }
 }
 
@@ -190,8 +196,8 @@ void markdown_overlap_screening(std::ostream& out, const Table& table, const Tra
          "decided early | evals/pair | near-tangent >1e-9/≤1e-9 | defaults: pairs/s | × brent |\n"
          "|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
   for (Family family : run.families)
-    for (Path path : {Path::overlap_double, Path::overlap_mixed, Path::overlap_single,
-                      Path::overlap_float}) {
+    for (Path path :
+         {Path::overlap_double, Path::overlap_mixed, Path::overlap_single, Path::overlap_float}) {
       const Target screening{Configuration{path, family, run.isa}, 0, 0};
       const Measurement* best = fastest_within(table, screening, run.isa, false);
       const Measurement* defaults = table.find(screening.configuration);
@@ -220,8 +226,8 @@ double plotted_error(double error) {
   return std::clamp(error, plot_error_floor, plot_error_ceiling);
 }
 
-const char* const group_colours[] = {"#1f77b4", "#6baed6", "#2ca02c", "#98df8a",
-                                     "#ff7f0e", "#d62728"};
+const char* const group_colours[] = {"#1f77b4", "#6baed6", "#2ca02c",
+                                     "#98df8a", "#ff7f0e", "#d62728"};
 
 // Point types: filled for automatic iterations, open for fixed; circles for
 // Newton (and the automatic formulation), triangles for log_odds.
@@ -289,15 +295,17 @@ void write_target_corners(std::ostream& gp, const Table& table, Family family) {
     if (speed)
       gp << format("set arrow from first %g, graph 0 to first %g, first %g ", x, x, y) << style
          << '\n'
-         << format("set label '%gx' at first %g, graph 0.02 rotate by 90 offset -0.3,0 "
-                   "font ',8'\n",
-                   t.min_speedup, x);
+         << format(
+                "set label '%gx' at first %g, graph 0.02 rotate by 90 offset -0.3,0 "
+                "font ',8'\n",
+                t.min_speedup, x);
     const std::string text =
         speed ? format("target: %s >= %gx brent, <= %g", group.label().c_str(), t.min_speedup, y)
               : format("target: %s <= %g (speed reported)", group.label().c_str(), y);
-    gp << format("set label \"%s\" at graph 0.99, first %g right offset 0,%.1f font ',8' "
-                 "noenhanced\n",
-                 text.c_str(), y, 0.6 + 1.1 * labels_at[y]++);
+    gp << format(
+        "set label \"%s\" at graph 0.99, first %g right offset 0,%.1f font ',8' "
+        "noenhanced\n",
+        text.c_str(), y, 0.6 + 1.1 * labels_at[y]++);
   }
 }
 
@@ -433,10 +441,11 @@ void write_markdown(const std::string& path, const Table& table, const TradeRun&
   out << "```\n\n## Targets: the library's default settings\n\n```text\n";
   print_targets(out, table, run.isa);
   out << "```\n\n## Best setting per family and precision (full answer, 1 thread)\n\n"
-      << format("The fastest setting whose max error is within a factor %g of the lowest that "
-                "precision reached on the family; defaults: automatic iterations and "
-                "formulation.\n\n",
-                best_accuracy_factor);
+      << format(
+             "The fastest setting whose max error is within a factor %g of the lowest that "
+             "precision reached on the family; defaults: automatic iterations and "
+             "formulation.\n\n",
+             best_accuracy_factor);
   markdown_best_settings(out, table, run);
   out << "\n## Overlap screening (1 thread)\n\n";
   markdown_overlap_screening(out, table, run);
@@ -464,8 +473,9 @@ void draw_plot(const std::string& png, const std::string& work_files, const Tabl
      << "set output " << gp_quoted(png) << '\n'
      << format("set multiplot layout 1,%d title %s noenhanced\n", int(panels.size()),
                gp_text("pwcontact: max relative error of mu^2 against throughput (1 thread, "
-                         "full answer)" + (run.label.empty() ? "" : " - " + run.label) +
-                         "\npoints: every configuration; lines: the fastest at each accuracy")
+                       "full answer)" +
+                       (run.label.empty() ? "" : " - " + run.label) +
+                       "\npoints: every configuration; lines: the fastest at each accuracy")
                    .c_str())
      << "set logscale xy\nset format x '10^{%L}'\nset format y '10^{%L}'\n"
      << format("set yrange [%g:%g]\n", plot_error_floor, plot_error_ceiling)
@@ -499,7 +509,8 @@ void draw_plot(const std::string& png, const std::string& work_files, const Tabl
     if (const Measurement* b = table.brent_baseline(family)) {
       brent << format("%.6g %.6g\n\n\n", b->pairs_per_second,
                       plotted_error(b->counter(counter::max_rel_err)));
-      add(format("%s index %d using 1:2 with points pt 3 ps 2.2 lw 2 lc rgb 'black' "
+      add(
+          format("%s index %d using 1:2 with points pt 3 ps 2.2 lw 2 lc rgb 'black' "
                  "title 'brent_baseline'",
                  gp_quoted(brent_path).c_str(), brent_block++));
     }

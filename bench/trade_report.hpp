@@ -18,8 +18,8 @@ struct TradeRun {
   std::string label;  // e.g. the commit measured; may be empty
   Isa isa = Isa::automatic;
   int repetitions = 0;
-  double min_time = 0;         // seconds of calls per timing
-  std::vector<int> threads;    // the thread counts timed
+  double min_time = 0;       // seconds of calls per timing
+  std::vector<int> threads;  // the thread counts timed
   FamilySizes sizes;
   std::vector<Family> families;
 };

@@ -31,7 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   BatchOptions options;
   options.threads = 1;
   const int precision = knobs % 3;
-  options.precision = precision == 0 ? Precision::double_precision
+  options.precision = precision == 0   ? Precision::double_precision
                       : precision == 1 ? Precision::mixed
                                        : Precision::single_precision;
   const double eps = precision == 2 ? std::numeric_limits<float>::epsilon()

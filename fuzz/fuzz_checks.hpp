@@ -44,8 +44,8 @@ inline double condition_at(const double q1[6], const double q2[6], double lambda
 inline bool has_answer(const ContactResult<double>& ref, Status status) {
   if (ref.status == Status::non_finite_input || ref.status == Status::q1_not_positive_definite ||
       ref.status == Status::q2_not_positive_definite) {
-    expect(status == ref.status, "the reference path's reason for an invalid pair",
-           double(status), double(ref.status));
+    expect(status == ref.status, "the reference path's reason for an invalid pair", double(status),
+           double(ref.status));
     return false;
   }
   return true;
@@ -56,9 +56,8 @@ inline bool has_answer(const ContactResult<double>& ref, Status status) {
 // of the arithmetic the answer was computed in, normal_min the smallest
 // normal number of the answer's type (a valid mu2 is in its normal range,
 // or exactly 0 for coincident centres).
-inline void check_full_answer(const double r[3], const double q1[6], const double q2[6],
-                              double mu2, double lambda, Status status, double eps,
-                              bool lambda_asked,
+inline void check_full_answer(const double r[3], const double q1[6], const double q2[6], double mu2,
+                              double lambda, Status status, double eps, bool lambda_asked,
                               double normal_min = std::numeric_limits<double>::min()) {
   const ContactResult<double> ref = contact_function<double>(r, q1, q2);
   if (!has_answer(ref, status)) return;
@@ -97,8 +96,7 @@ inline void check_overlap_answer(const double r[3], const double q1[6], const do
   const double cond = condition_at(q1, q2, ref.lambda);
   const double band = std::max(1e-9, 32 * eps * cond) * cutoff2;
   if (std::abs(ref.mu2 - cutoff2) > band)
-    expect(overlap == (ref.mu2 < cutoff2), "the overlap answer's classification", overlap,
-           ref.mu2);
+    expect(overlap == (ref.mu2 < cutoff2), "the overlap answer's classification", overlap, ref.mu2);
 }
 
 }  // namespace pwcontact::fuzz

@@ -30,7 +30,7 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t knobs, std::ui
   const bool single = std::is_same<T, float>::value;
   const int precision = (knobs >> 2) % 3;
   if (!single)
-    options.precision = precision == 0 ? Precision::double_precision
+    options.precision = precision == 0   ? Precision::double_precision
                         : precision == 1 ? Precision::mixed
                                          : Precision::single_precision;
   const int iterations[] = {0, 0, 1, 3};
@@ -38,8 +38,8 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t knobs, std::ui
   options.formulation = (knobs >> 6) & 1 ? Formulation::log_odds : Formulation::newton;
   const bool overlap_mode = more & 1;
   const bool lambda_asked = more & 2;
-  const bool high = (more & 4) && !single && options.precision != Precision::single_precision &&
-                    !overlap_mode;
+  const bool high =
+      (more & 4) && !single && options.precision != Precision::single_precision && !overlap_mode;
   if (high) options.accuracy = Accuracy::high;
   const double eps = single || options.precision == Precision::single_precision
                          ? std::numeric_limits<float>::epsilon()
@@ -64,8 +64,8 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t knobs, std::ui
     return;
   }
   std::vector<T> mu2(n), lambda(n);
-  contact_function_batch(pairs.view(), {mu2.data(), lambda_asked ? lambda.data() : nullptr, status.data()},
-                         options);
+  contact_function_batch(
+      pairs.view(), {mu2.data(), lambda_asked ? lambda.data() : nullptr, status.data()}, options);
   for (std::size_t i = 0; i < n; ++i) {
     double r[3], q1[6], q2[6];
     widened(i, r, q1, q2);

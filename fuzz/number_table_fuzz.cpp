@@ -26,7 +26,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       if (r > 0) fuzz::expect(table.line[r] > table.line[r - 1], "records in line order");
     }
   } catch (const cli::CommandError& e) {
-    fuzz::expect(e.exit_status() == cli::ExitStatus::usage_error, "a malformed line is a usage error");
+    fuzz::expect(e.exit_status() == cli::ExitStatus::usage_error,
+                 "a malformed line is a usage error");
     const std::string message = e.what();
     fuzz::expect(message.rfind("fuzz:", 0) == 0, "the message names the input and the line");
     fuzz::expect(message.find('\0') == std::string::npos, "no NUL in a message");

@@ -29,7 +29,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     subcommand.parse_only(arguments);
   } catch (const cli::CommandError& e) {
-    fuzz::expect(e.exit_status() == cli::ExitStatus::usage_error, "a bad command line is a usage error");
+    fuzz::expect(e.exit_status() == cli::ExitStatus::usage_error,
+                 "a bad command line is a usage error");
   }
   return 0;
 }

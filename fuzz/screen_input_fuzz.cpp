@@ -41,7 +41,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         particles.add_axes({c[0][i], c[1][i], c[2][i]}, {c[3][i], c[4][i], c[5][i]},
                            {c[6][i], c[7][i], c[8][i], c[9][i]});
       else
-        particles.add({c[0][i], c[1][i], c[2][i]}, {c[3][i], c[4][i], c[5][i], c[6][i], c[7][i], c[8][i]});
+        particles.add({c[0][i], c[1][i], c[2][i]},
+                      {c[3][i], c[4][i], c[5][i], c[6][i], c[7][i], c[8][i]});
     }
   } catch (const std::invalid_argument&) {
     return 0;  // refused with a message: what a malformed scene gets
@@ -61,8 +62,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     fuzz::expect(pairs.i[k] < pairs.j[k] && pairs.j[k] < n, "pairs i < j of the scene");
     if (k > 0)
-      fuzz::expect(std::make_pair(pairs.i[k - 1], pairs.j[k - 1]) < std::make_pair(pairs.i[k], pairs.j[k]),
-                   "pairs sorted, each once");
+      fuzz::expect(
+          std::make_pair(pairs.i[k - 1], pairs.j[k - 1]) < std::make_pair(pairs.i[k], pairs.j[k]),
+          "pairs sorted, each once");
     found.insert({pairs.i[k], pairs.j[k]});
   }
   const double cutoff2 = cutoff * cutoff;
@@ -72,7 +74,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       for (int a = 0; a < 3; ++a) {
         r[a] = particles.centre(a)[j] - particles.centre(a)[i];
         if (periodic) {
-          r[a] = std::fmod(particles.centre(a)[j], length) - std::fmod(particles.centre(a)[i], length);
+          r[a] =
+              std::fmod(particles.centre(a)[j], length) - std::fmod(particles.centre(a)[i], length);
           r[a] -= length * std::nearbyint(r[a] / length);
         }
       }
@@ -81,8 +84,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const ContactResult<double> ref = contact_function<double>(r, qi, qj);
       if (ref.status != Status::ok && ref.status != Status::out_of_range) continue;
       const double cond = fuzz::condition_at(qi, qj, ref.lambda);
-      const double band = std::max(1e-9, 32 * std::numeric_limits<double>::epsilon() * cond) * cutoff2 +
-                          16 * std::numeric_limits<double>::epsilon() * length * length;
+      const double band =
+          std::max(1e-9, 32 * std::numeric_limits<double>::epsilon() * cond) * cutoff2 +
+          16 * std::numeric_limits<double>::epsilon() * length * length;
       if (std::abs(ref.mu2 - cutoff2) <= band) continue;
       fuzz::expect(found.count({i, j}) == (ref.mu2 < cutoff2 ? 1u : 0u),
                    "the screen's pairs are the brute force's", double(i), double(j));

@@ -37,6 +37,8 @@ packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-d
 [ "$job" = moves-bench ] && packages+=(libfcl-dev)  # the baseline of the trial moves
 # The scene-file tests also read back what they write with the gsd package.
 case "$job" in test|sanitize) packages+=(python3-gsd) ;; esac
+# The test suite checks the C++ layout against .clang-format with clang-format 14.
+case "$job" in test|sanitize) packages+=(clang-format-14) ;; esac
 # The release preset builds the Python module (pybind11, numpy) against
 # /usr/bin/python3, and the tests run it with pytest.
 case "$job" in sanitize|fuzz|tsan) ;;

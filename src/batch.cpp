@@ -59,11 +59,12 @@ BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   // Newton on g: measured at least as fast as log_odds wherever the targets
   // are set (README, "The trade"); log_odds needs fewer iterations on the
   // most elongated shapes but costs more per iteration.
-  report.formulation = options.formulation == Formulation::automatic ? Formulation::newton
-                                                                      : options.formulation;
+  report.formulation =
+      options.formulation == Formulation::automatic ? Formulation::newton : options.formulation;
   const std::size_t chunks = (pairs + chunk_pairs - 1) / chunk_pairs;
   const int wanted = options.threads > 0 ? options.threads : omp_get_max_threads();
-  report.threads = int(std::min<std::size_t>(std::size_t(wanted), std::max<std::size_t>(chunks, 1)));
+  report.threads =
+      int(std::min<std::size_t>(std::size_t(wanted), std::max<std::size_t>(chunks, 1)));
   return report;
 }
 
@@ -88,7 +89,7 @@ void check_pairs(const PairBatchView<T>& pairs) {
 template <class T>
 unsigned output_bits(const ContactOutputs<T>& out) {
   unsigned bits = out.lambda ? unsigned(kernels::with_lambda) : 0u;
-  auto triple = [&](T* const (&v)[3], unsigned bit, const char* name) {
+  auto triple = [&](T* const(&v)[3], unsigned bit, const char* name) {
     const int given = (v[0] != nullptr) + (v[1] != nullptr) + (v[2] != nullptr);
     if (given != 0 && given != 3)
       throw std::invalid_argument(std::string("ContactOutputs::") + name +
@@ -192,7 +193,8 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
   std::uint64_t evaluations = 0, prefilter = 0, certificate = 0;
   ChunkTally total;
   auto solve = [&](std::size_t c, const kernels::Scratch& scratch, ChunkTally& tally,
-                   std::uint64_t& evaluated, std::uint64_t& by_prefilter, std::uint64_t& by_certificate) {
+                   std::uint64_t& evaluated, std::uint64_t& by_prefilter,
+                   std::uint64_t& by_certificate) {
     const std::size_t begin = c * chunk_pairs;
     kernels::ChunkCounters counters;
     solve_chunk(begin, std::min(chunk_pairs, pairs - begin), scratch, counters, tally);
@@ -203,7 +205,8 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
   if (report.threads == 1 || chunks <= 1) {
     // In the calling thread, without a thread team.
     const kernels::Scratch scratch = thread_scratch();
-    for (std::size_t c = 0; c < chunks; ++c) solve(c, scratch, total, evaluations, prefilter, certificate);
+    for (std::size_t c = 0; c < chunks; ++c)
+      solve(c, scratch, total, evaluations, prefilter, certificate);
   } else {
     detail::ParallelErrors errors;  // (nothing in a chunk is expected to throw)
 #pragma omp parallel num_threads(report.threads) reduction(+ : evaluations, prefilter, certificate)
@@ -240,8 +243,8 @@ void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTa
   const unsigned char* at = first + begin;
   const unsigned char* const end = at + n;
   std::size_t left = 0;
-  while (const void* found = std::memchr(at, int(std::uint8_t(kernels::needs_fallback)),
-                                         std::size_t(end - at))) {
+  while (const void* found =
+             std::memchr(at, int(std::uint8_t(kernels::needs_fallback)), std::size_t(end - at))) {
     const std::size_t i = std::size_t(static_cast<const unsigned char*>(found) - first);
     answer(i);
     ++left;
@@ -310,8 +313,9 @@ template <class T>
 bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
                            Status* status, std::size_t i, unsigned bits, Accuracy accuracy) {
   const ScalarPair p = scalar_pair(pairs, i);
-  const ContactResult<double> ref = accuracy == Accuracy::high ? reference_in_long_double(p)
-                                                                : contact_function<double>(p.r, p.q1, p.q2);
+  const ContactResult<double> ref = accuracy == Accuracy::high
+                                        ? reference_in_long_double(p)
+                                        : contact_function<double>(p.r, p.q1, p.q2);
   const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;
   out.mu2[i] = T(ref.mu2);
   if (bits & kernels::with_lambda) out.lambda[i] = T(ref.lambda);
@@ -329,7 +333,7 @@ bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T
   const bool coincident = p.r[0] == 0 && p.r[1] == 0 && p.r[2] == 0;
   if (solved)
     status[i] = coincident || detail::range_status(out.mu2[i]) == Status::ok ? Status::ok_fallback
-                                                                              : Status::out_of_range;
+                                                                             : Status::out_of_range;
   else
     status[i] = ref.status;
   return solved || ref.status == Status::not_converged;
@@ -350,20 +354,23 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
   // Statuses are needed to find the lanes left to the reference path.
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   Status* const status = out.status ? out.status : scratch_status.data();
-  run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-                                     kernels::ChunkCounters& counters, ChunkTally& tally) {
-    kernels::ResultSpan<T> result{out.mu2 + begin, out.lambda ? out.lambda + begin : nullptr,
-                                  status + begin, {}, {}, {}};
-    for (int k = 0; k < 3; ++k) {
-      if (bits & kernels::with_contact_point) result.contact_point[k] = out.contact_point[k] + begin;
-      if (bits & kernels::with_normal) result.normal[k] = out.normal[k] + begin;
-      if (bits & kernels::with_gradient) result.gradient[k] = out.gradient[k] + begin;
-    }
-    kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
-    answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
-      tally.fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
-    });
-  });
+  run_chunks(
+      pairs.size, report,
+      [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+          kernels::ChunkCounters& counters, ChunkTally& tally) {
+        kernels::ResultSpan<T> result{
+            out.mu2 + begin, out.lambda ? out.lambda + begin : nullptr, status + begin, {}, {}, {}};
+        for (int k = 0; k < 3; ++k) {
+          if (bits & kernels::with_contact_point)
+            result.contact_point[k] = out.contact_point[k] + begin;
+          if (bits & kernels::with_normal) result.normal[k] = out.normal[k] + begin;
+          if (bits & kernels::with_gradient) result.gradient[k] = out.gradient[k] + begin;
+        }
+        kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
+        answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
+          tally.fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
+        });
+      });
   return report;
 }
 
@@ -380,10 +387,12 @@ kernels::ChunkSettings overlap_settings(const BatchReport& report, const BatchOp
     *std::to_chars(text, text + sizeof text - 1, cutoff).ptr = '\0';
     throw std::invalid_argument(
         std::string("overlap_batch: the cutoff's square is outside the range of normal doubles, "
-                    "cutoff ") + text);
+                    "cutoff ") +
+        text);
   }
   if (options.accuracy == Accuracy::high)
-    throw std::invalid_argument("overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");
+    throw std::invalid_argument(
+        "overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");
   kernels::ChunkSettings settings = chunk_settings(report, options);
   settings.cutoff_mu2 = cutoff * cutoff;
   return settings;
@@ -416,15 +425,17 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
 
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   const OverlapOutputs all{out.overlap, out.status ? out.status : scratch_status.data()};
-  run_chunks(pairs.size, report, [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-                                     kernels::ChunkCounters& counters, ChunkTally& tally) {
-    kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings, scratch,
-           counters);
-    answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
-      tally.fallbacks += answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
-    });
-    tally.overlapping += count_ones(all.overlap + begin, n);
-  });
+  run_chunks(pairs.size, report,
+             [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+                 kernels::ChunkCounters& counters, ChunkTally& tally) {
+               kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings,
+                      scratch, counters);
+               answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
+                 tally.fallbacks +=
+                     answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
+               });
+               tally.overlapping += count_ones(all.overlap + begin, n);
+             });
   return report;
 }
 
@@ -455,9 +466,10 @@ PairOverlapSolver::PairOverlapSolver(const BatchOptions& options, double cutoff,
   const BatchReport report = resolve<double>(options, capacity);
   state_->settings = overlap_settings<double>(report, options, cutoff);
   state_->kernel = overlap_kernel<double>(kernels::kernels_for(report.isa), report.precision);
-  state_->narrow_kernel = report.isa == Isa::avx512 && isa_supported(Isa::avx2)
-                              ? overlap_kernel<double>(kernels::kernels_for(Isa::avx2), report.precision)
-                              : state_->kernel;
+  state_->narrow_kernel =
+      report.isa == Isa::avx512 && isa_supported(Isa::avx2)
+          ? overlap_kernel<double>(kernels::kernels_for(Isa::avx2), report.precision)
+          : state_->kernel;
   state_->capacity = capacity;
   const std::size_t bytes = kernels::scratch_bytes(capacity);
   state_->storage.reset(new unsigned char[bytes + 64]);

@@ -32,8 +32,9 @@ QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
   // (maxCoeff skips NaN, hence the explicit finiteness check.)
   const double defect = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   if (!r.allFinite() || !(defect <= 1e-9))
-    throw std::invalid_argument("quadratic_form: rotation matrix is not orthogonal (|R^T R - I| = " +
-                                std::to_string(defect) + ")");
+    throw std::invalid_argument(
+        "quadratic_form: rotation matrix is not orthogonal (|R^T R - I| = " +
+        std::to_string(defect) + ")");
   return from_rotation(semi_axes, r);
 }
 

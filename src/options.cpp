@@ -44,8 +44,9 @@ const char* formulation_name(Formulation f) noexcept {
 }
 
 std::optional<Precision> parse_precision(std::string_view name) noexcept {
-  return parse_named(name, {Precision::automatic, Precision::double_precision,
-                            Precision::single_precision, Precision::mixed},
+  return parse_named(name,
+                     {Precision::automatic, Precision::double_precision,
+                      Precision::single_precision, Precision::mixed},
                      precision_name);
 }
 

@@ -93,8 +93,8 @@ bool positive_definite_exactly(const double a[6]) {
 
 }  // namespace detail
 
-template ContactResult<double> contact_function<double>(const double*, const double*,
-                                                        const double*, const ReferenceOptions&);
+template ContactResult<double> contact_function<double>(const double*, const double*, const double*,
+                                                        const ReferenceOptions&);
 template ContactResult<float> contact_function<float>(const float*, const float*, const float*,
                                                       const ReferenceOptions&);
 template ContactGeometry<double> contact_geometry<double>(const double*, const double*,

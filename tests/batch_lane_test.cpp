@@ -5,9 +5,9 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
-#include <stdexcept>
 
 #include "test_support.hpp"
 
@@ -511,8 +511,8 @@ void expect_strided_views_match_columns(Isa isa) {
   if (std::is_same<T, double>::value) precisions.push_back(pwcontact::Precision::mixed);
   for (pwcontact::Precision precision : precisions) {
     const BatchOptions options = with_precision(with_isa(isa, 0, 1), precision);
-    const std::string name = std::string(pwcontact::isa_name(isa)) + ", precision " +
-                             std::to_string(int(precision));
+    const std::string name =
+        std::string(pwcontact::isa_name(isa)) + ", precision " + std::to_string(int(precision));
     const AllOutputs<T> expected = solve_all(columns.view(), options);
     expect_same_outputs(solve_all(rows_view(rows, 0, 1, n), options), expected, name + ", rows");
     expect_same_outputs(solve_all(rows_view(reversed, n - 1, -1, n), options), expected,
@@ -522,7 +522,8 @@ void expect_strided_views_match_columns(Isa isa) {
     std::vector<T> r(3 * n), a(6 * n), b(6 * n);
     for (std::size_t i = 0; i < n; ++i) {
       for (std::size_t k = 0; k < 3; ++k) r[3 * i + k] = rows[i].r12[k];
-      for (std::size_t k = 0; k < 6; ++k) a[6 * i + k] = rows[i].q1[k], b[6 * i + k] = rows[i].q2[k];
+      for (std::size_t k = 0; k < 6; ++k)
+        a[6 * i + k] = rows[i].q1[k], b[6 * i + k] = rows[i].q2[k];
     }
     pwcontact::PairBatchView<T> packed;
     packed.size = n;

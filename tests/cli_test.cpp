@@ -1,11 +1,11 @@
 // The command line end to end: the built `pwcontact` binary is run in a
 // fresh temporary directory per test, its files, standard output, standard
 // error and exit status checked.
-#include <gtest/gtest.h>
 #include <fcntl.h>
-#include <csignal>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <csignal>
 
 #include <algorithm>
 #include <array>
@@ -217,7 +217,8 @@ class cli : public ::testing::Test {
 // Results
 
 TEST_F(cli, SpheresRoundTripThroughAFile) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
   // Two spheres: mu = |r| / (a1 + a2), lambda = a1 / (a1 + a2).
   const std::vector<Spheres> cases = {
       {1, 2, {6, 0, 0}}, {0.5, 1.5, {1, 2, 2}},        {3, 1, {0, 0, 1}},
@@ -253,7 +254,8 @@ TEST_F(cli, CommentsAndBlankLinesAreSkipped) {
 }
 
 TEST_F(cli, NonFiniteNumbersAreAnsweredWithAStatusNotAnError) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
   const std::string good = "6 0 0 " + sphere_text(1) + " " + sphere_text(2) + "\n";
   const std::string& q = unit_sphere;
   const std::string text = good +                                   //
@@ -464,7 +466,8 @@ TEST_F(cli, GeometricOutputsOfTwoSpheresMatchTheClosedForm) {
 }
 
 TEST_F(cli, OnlyTheListedColumnsAreWritten) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
   write_file("pairs.txt", Spheres{1, 2, {6, 0, 0}}.line());
   EXPECT_EQ(run("contact --outputs status,mu2 pairs.txt").out, "0 4\n");
   EXPECT_EQ(run("contact --outputs lambda pairs.txt").out, "0.33333333333333331\n");
@@ -472,7 +475,8 @@ TEST_F(cli, OnlyTheListedColumnsAreWritten) {
 }
 
 TEST_F(cli, SummaryNamesTheSettingsAsResolved) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
   write_file("pairs.txt", Spheres{1, 2, {6, 0, 0}}.line() + Spheres{1, 1, {0, 1, 1}}.line());
   const Outcome defaults = run("contact pairs.txt");
   ASSERT_EQ(defaults.exit_status, 0) << defaults.err;
@@ -727,11 +731,12 @@ TEST_F(cli, HelpListsEveryStatusCodeAndEveryOption) {
                            "--max-aspect A", "--seed S", "--cutoff MU"})
     EXPECT_TRUE(contains(demo_help, text)) << text << "\n" << demo_help;
   const std::string screen_help = collapse_whitespace(run("screen --help").out);
-  for (const char* text : {"--box LX LY LZ [XY XZ YZ]", "--cutoff MU",
-                           "--format q|axes|ellipse|gsd|lammps-data|lammps-dump", "--with-mu2",
-                           "--frame N", "--columns NAME=COLUMN,...", "--outputs pairs|counts|neighbors",
-                           "--threads N", "-o, --output OUT", "x y z a b c qw qx qy qz",
-                           "ellipse: x y a b theta", ".lammpstrj lammps-dump"})
+  for (const char* text :
+       {"--box LX LY LZ [XY XZ YZ]", "--cutoff MU",
+        "--format q|axes|ellipse|gsd|lammps-data|lammps-dump", "--with-mu2", "--frame N",
+        "--columns NAME=COLUMN,...", "--outputs pairs|counts|neighbors", "--threads N",
+        "-o, --output OUT", "x y z a b c qw qx qy qz", "ellipse: x y a b theta",
+        ".lammpstrj lammps-dump"})
     EXPECT_TRUE(contains(screen_help, text)) << text << "\n" << screen_help;
 }
 
@@ -792,8 +797,8 @@ INSTANTIATE_TEST_SUITE_P(
         "contact --outputs mu2,,lambda", "contact --outputs ''", "contact --outputs mu2,mu2",
         "contact --outputs overlap", "pairs --iterations never",
         // Combinations that do not apply
-        "contact --accuracy high --precision float a.txt", "pairs --accuracy high --precision float",
-        "contact --mode overlap --outputs mu2 a.txt",
+        "contact --accuracy high --precision float a.txt",
+        "pairs --accuracy high --precision float", "contact --mode overlap --outputs mu2 a.txt",
         "contact --mode overlap --outputs overlap,status a.txt",
         "contact --mode overlap --accuracy standard a.txt", "contact --cutoff 2 a.txt",
         "contact --mode full --cutoff 1 a.txt", "contact --scalar --precision mixed a.txt",
@@ -825,7 +830,8 @@ TEST_F(cli, OptionsThatDoNotApplyAreRefusedWithTheReason) {
 }
 
 TEST_F(cli, OutputThroughASymbolicLinkOrToADeviceIsWrittenInPlace) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "expects the x86 kernels' status 0 and evaluation counts";
   write_file("pairs.txt", "6 0 0 " + sphere_text(1) + " " + sphere_text(2) + "\n");
   fs::create_directory(path("kept"));
   write_file("kept/results.txt", "earlier results\n");
@@ -892,9 +898,8 @@ TEST_F(cli, PairsReportsThroughputAndAccuracy) {
 TEST_F(cli, DemoScreensASceneAndReportsEveryStage) {
   const Outcome result = run("demo --n 20000 --seed 3");
   ASSERT_EQ(result.exit_status, 0) << result.err;
-  for (const char* word : {"20000 spheroids", "periodic box", "candidate pairs", "found",
-                           "cells", "candidates and prefilters", "compaction", "solve",
-                           "sorting", "total"})
+  for (const char* word : {"20000 spheroids", "periodic box", "candidate pairs", "found", "cells",
+                           "candidates and prefilters", "compaction", "solve", "sorting", "total"})
     EXPECT_TRUE(contains(result.out, word)) << word << "\n" << result.out;
   // The same scene and the same pairs with one thread.
   const Outcome one = run("demo --n 20000 --seed 3 --threads 1");
@@ -972,7 +977,9 @@ TEST_F(cli, ScreenTakesTiltedBoxesInTheHoomdConvention) {
   // mu^2 = (0.5 / 0.8)^2, to the rounding of the image (fractional
   // coordinates times the box: a few eps of the box length in r).
   double mu2 = 0;
-  ASSERT_EQ(std::sscanf(run("screen --box 10 10 10 0.5 0 0 --with-mu2 two.txt").out.c_str(), "0 1 %lf", &mu2), 1);
+  ASSERT_EQ(std::sscanf(run("screen --box 10 10 10 0.5 0 0 --with-mu2 two.txt").out.c_str(),
+                        "0 1 %lf", &mu2),
+            1);
   EXPECT_NEAR(mu2, 0.390625, 1e-14);
   EXPECT_EQ(run("screen --box=10,10,10,0.5,0,0 two.txt").out, "0 1\n");
   EXPECT_EQ(run("screen --box 10 10 10 two.txt").out, "");
@@ -985,7 +992,8 @@ TEST_F(cli, ScreenReadsEllipsesInAPlaneWithTheirExactContactFunction) {
   // Ellipses a = 2, b = 0.5 on the x axis, 3 apart: aligned with the line
   // of centres mu = 3 / (2 + 2); the second turned by 90 degrees, mu =
   // 3 / (2 + 0.5) (a principal axis of both along r: mu = d / (r1 + r2)).
-  write_file("ellipses.txt", "0 0 2 0.5 0\n3 0 2 0.5 0\n0 5 2 0.5 0\n3 5 2 0.5 1.5707963267948966\n");
+  write_file("ellipses.txt",
+             "0 0 2 0.5 0\n3 0 2 0.5 0\n0 5 2 0.5 0\n3 5 2 0.5 1.5707963267948966\n");
   const Outcome result = run("screen --format ellipse --cutoff 1.5 --with-mu2 ellipses.txt");
   ASSERT_EQ(result.exit_status, 0) << result.err;
   const auto lines = split_lines(result.out);
@@ -1002,7 +1010,8 @@ TEST_F(cli, ScreenReadsEllipsesInAPlaneWithTheirExactContactFunction) {
   write_file("plane.txt", "1 -4.5 0.4 0.4 0\n6 5 0.4 0.4 0\n");
   EXPECT_EQ(run("screen --format ellipse --box 10 10 0.5 plane.txt").out, "0 1\n");
   EXPECT_EQ(run("screen --format ellipse --box 10 10 plane.txt").out, "");
-  const Outcome zero = run("screen --format ellipse plane.txt", "printf '0 0 1 0 0\\n' >> plane.txt &&");
+  const Outcome zero =
+      run("screen --format ellipse plane.txt", "printf '0 0 1 0 0\\n' >> plane.txt &&");
   EXPECT_EQ(zero.exit_status, 2);
   EXPECT_TRUE(contains(zero.err, "ellipse 2 (line 3)")) << zero.err;
 }
@@ -1032,7 +1041,8 @@ TEST_F(cli, ScreenReadsGsdAndLammpsFilesByTheirNames) {
   const Outcome from_2d = run("screen " + quoted(ellipses));
   ASSERT_EQ(from_2d.exit_status, 0) << from_2d.err;
   EXPECT_EQ(from_2d.out, library_pairs(pwcontact::read_gsd(ellipses), 1));
-  EXPECT_TRUE(contains(from_2d.err, "two-dimensional periodic box 9 x 8, tilt xy 0.25")) << from_2d.err;
+  EXPECT_TRUE(contains(from_2d.err, "two-dimensional periodic box 9 x 8, tilt xy 0.25"))
+      << from_2d.err;
   const std::string lammps = data + "/lammps_triclinic.data";
   const Outcome from_data = run("screen --cutoff 1.3 " + quoted(lammps));
   ASSERT_EQ(from_data.exit_status, 0) << from_data.err;
@@ -1056,15 +1066,18 @@ TEST_F(cli, ScreenReadsGsdAndLammpsFilesByTheirNames) {
 
 TEST_F(cli, ScreenWritesTheCountsBackAsAGsdFrame) {
   const std::string gsd = std::string(PWCONTACT_TEST_DATA) + "/hoomd_triclinic.gsd";
-  const Outcome result = run("screen --cutoff 1.2 --outputs counts --write-gsd out.gsd " + quoted(gsd));
+  const Outcome result =
+      run("screen --cutoff 1.2 --outputs counts --write-gsd out.gsd " + quoted(gsd));
   ASSERT_EQ(result.exit_status, 0) << result.err;
   EXPECT_TRUE(contains(result.err, "log/particles/overlaps to out.gsd")) << result.err;
   // The frame as it was: the same scene read back.
-  const pwcontact::Scene original = pwcontact::read_gsd(gsd), written = pwcontact::read_gsd(path("out.gsd"));
+  const pwcontact::Scene original = pwcontact::read_gsd(gsd),
+                         written = pwcontact::read_gsd(path("out.gsd"));
   ASSERT_EQ(written.particles.size(), original.particles.size());
   EXPECT_EQ(written.box.tilt, original.box.tilt);
   for (std::size_t i = 0; i < original.particles.size(); ++i)
-    for (int k = 0; k < 6; ++k) EXPECT_EQ(written.particles.q(k)[i], original.particles.q(k)[i]) << i;
+    for (int k = 0; k < 6; ++k)
+      EXPECT_EQ(written.particles.q(k)[i], original.particles.q(k)[i]) << i;
   // The counts, as python3-gsd (an independent reader) sees them.
   write_file("log.py",
              "import gsd.hoomd\n"
@@ -1113,7 +1126,8 @@ TEST_F(cli, MalformedSimulationFilesStopTheRunNamingWhatIsWrong) {
   while (std::getline(data_in, line)) {
     ++number;
     if (line.rfind("Ellipsoids", 0) == 0) in_ellipsoids = true;
-    if (in_ellipsoids && !done && !line.empty() && std::isdigit(static_cast<unsigned char>(line[0]))) {
+    if (in_ellipsoids && !done && !line.empty() &&
+        std::isdigit(static_cast<unsigned char>(line[0]))) {
       std::istringstream words(line);
       std::string id;
       words >> id;
@@ -1150,7 +1164,6 @@ TEST_F(cli, ScreenStopsAtABadLineWithItsNumberAndWritesNothing) {
   EXPECT_EQ(too_small.exit_status, 2);
   EXPECT_TRUE(contains(too_small.err, "too small")) << too_small.err;
 }
-
 
 // ---------------------------------------------------------------------------
 // Reliability: faults, bad input and any size

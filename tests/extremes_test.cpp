@@ -267,7 +267,8 @@ TEST_P(Extremes, SizeRatiosBeyondWhatLambdaResolvesGiveTheClosedForm) {
     sizes.push_back({1, ratio});
     sizes.push_back({ratio, 1});
   }
-  expect_spheres_closed_form(sphere_pairs(sizes, 107), GetParam(), "size ratios beyond lambda's resolution");
+  expect_spheres_closed_form(sphere_pairs(sizes, 107), GetParam(),
+                             "size ratios beyond lambda's resolution");
 }
 
 // ---------------------------------------------------------------------------
@@ -316,12 +317,13 @@ void expect_power_of_two_scale_changes_no_bit(const std::vector<Pair<double>>& p
     const auto references = double_references(pairs);
     std::size_t differing = 0;
     for (std::size_t i = 0; i < pairs.size(); ++i) {
-      const bool same = double(b.mu2[i]) == references[i].mu2 &&
-                        double(b.lambda[i]) == references[i].lambda;
+      const bool same =
+          double(b.mu2[i]) == references[i].mu2 && double(b.lambda[i]) == references[i].lambda;
       differing += !same || b.status[i] != Status::ok_fallback;
     }
-    EXPECT_EQ(differing, 0u) << what << ": lanes not answered by the reference path, or not "
-                                        "with the unscaled pair's answer";
+    EXPECT_EQ(differing, 0u) << what
+                             << ": lanes not answered by the reference path, or not "
+                                "with the unscaled pair's answer";
     return;
   }
   expect_bitwise_equal(a, b, what);

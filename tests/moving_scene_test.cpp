@@ -13,14 +13,14 @@
 #include <string>
 #include <vector>
 
-#include "pwcontact/pwcontact.hpp"
 #include "pwcontact/moving_scene.hpp"
+#include "pwcontact/pwcontact.hpp"
 
 namespace {
 
 using pwcontact::Box;
-using pwcontact::ParticleStore;
 using pwcontact::MovingScene;
+using pwcontact::ParticleStore;
 using Particle = ParticleStore::Particle;
 
 // Near-tangent pairs are not compared: the overlap answers are exact beyond
@@ -34,7 +34,8 @@ constexpr double tangency_band = 1e-8;
 // scene's minimum image and cells).
 double brute_mu2(const Box& box, const Particle& t, const ParticleStore& s, std::size_t i) {
   const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
-  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const double a[3][3] = {
+      {lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
   const int reach = box.periodic ? 2 : 0;
   std::array<double, 6> q;
   for (int k = 0; k < 6; ++k) q[k] = s.q(k)[i];
@@ -85,7 +86,8 @@ std::array<double, 4> random_quaternion(std::mt19937_64& engine) {
 
 // Spheroids and ellipsoids of semi-axes 0.15 .. 0.6, some spheres, some of a
 // shape type.
-Particle random_particle(std::mt19937_64& engine, const ParticleStore& s, const Box& box, double l) {
+Particle random_particle(std::mt19937_64& engine, const ParticleStore& s, const Box& box,
+                         double l) {
   std::uniform_real_distribution<double> unit(0, 1);
   const auto c = random_centre(engine, box, l);
   const double kind = unit(engine);
@@ -123,7 +125,8 @@ void expect_query_matches(const MovingScene& scene, const Particle& t, std::int6
   for (double x : t.centre()) largest = std::max(largest, std::abs(x));
   const std::int64_t first = scene.overlaps(t, exclude);
   if (first == MovingScene::none) {
-    EXPECT_TRUE(overlapping.empty()) << where << ": none found, " << overlapping.size() << " overlap";
+    EXPECT_TRUE(overlapping.empty())
+        << where << ": none found, " << overlapping.size() << " overlap";
   } else {
     EXPECT_TRUE(overlapping.count(std::uint32_t(first)) || near.count(std::uint32_t(first)))
         << where << ": particle " << first << " reported overlapping, mu2 " << mu2[first];
@@ -145,7 +148,8 @@ void expect_query_matches(const MovingScene& scene, const Particle& t, std::int6
             << where << ": neighbour " << n.index;
       }
     }
-    for (std::uint32_t i : within_cutoff) EXPECT_TRUE(got.count(i)) << where << ": missed neighbour " << i;
+    for (std::uint32_t i : within_cutoff)
+      EXPECT_TRUE(got.count(i)) << where << ": missed neighbour " << i;
   }
 }
 
@@ -171,7 +175,7 @@ void expect_same_as_screen(const MovingScene& scene, const std::string& where) {
 
 struct Sequence {
   Box box;
-  double length;   // of the region particles are drawn in
+  double length;  // of the region particles are drawn in
   std::size_t particles;
   std::size_t steps;
   std::uint64_t seed;
@@ -182,7 +186,8 @@ void run_sequence(const Sequence& q) {
   std::uniform_real_distribution<double> unit(0, 1);
   ParticleStore s;
   s.add_type({0.5, 0.2, 0.2});
-  for (std::size_t n = 0; n < q.particles; ++n) s.add_particle(random_particle(engine, s, q.box, q.length));
+  for (std::size_t n = 0; n < q.particles; ++n)
+    s.add_particle(random_particle(engine, s, q.box, q.length));
   MovingScene scene(s, q.box);
   expect_same_as_screen(scene, "start");
   for (std::size_t step = 0; step < q.steps; ++step) {
@@ -197,7 +202,9 @@ void run_sequence(const Sequence& q) {
       const double kind = unit(engine);
       const double jump = kind < 0.8 ? 0.2 : (kind < 0.95 ? q.length : 1e6);
       for (double& x : c) x += jump * (2 * unit(engine) - 1);
-      Particle moved = unit(engine) < 0.5 ? p.moved_to(c) : random_particle(engine, now, q.box, q.length).moved_to(c);
+      Particle moved = unit(engine) < 0.5
+                           ? p.moved_to(c)
+                           : random_particle(engine, now, q.box, q.length).moved_to(c);
       expect_query_matches(scene, moved, std::int64_t(i), where + " (trial move)");
       scene.move(i, moved);
     } else if (op < 0.6) {
@@ -221,7 +228,8 @@ void run_sequence(const Sequence& q) {
   }
   // Emptied and refilled.
   while (scene.size() > 0) scene.remove(scene.size() - 1);
-  EXPECT_EQ(scene.overlaps(random_particle(engine, scene.particles(), q.box, q.length)), MovingScene::none);
+  EXPECT_EQ(scene.overlaps(random_particle(engine, scene.particles(), q.box, q.length)),
+            MovingScene::none);
   for (std::size_t n = 0; n < q.particles; ++n)
     scene.insert(random_particle(engine, scene.particles(), q.box, q.length));
   expect_same_as_screen(scene, "refilled");
@@ -304,10 +312,12 @@ TEST(MovingScene, ParallelMovesAreTheMovesOneAfterAnother) {
     parallel.move_many(index.data(), moved.data(), index.size(), 2);
     for (std::size_t k = 0; k < index.size(); ++k) serial.move(index[k], moved[k]);
     for (std::uint32_t i = 0; i < s.size(); ++i)
-      ASSERT_EQ(parallel.cell_of_particle(i), parallel.cell_of(parallel.particles().particle_at(i).centre()))
+      ASSERT_EQ(parallel.cell_of_particle(i),
+                parallel.cell_of(parallel.particles().particle_at(i).centre()))
           << "round " << round << ", particle " << i;
   }
-  for (int k = 0; k < 3; ++k) EXPECT_EQ(parallel.particles().centre(k), serial.particles().centre(k));
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(parallel.particles().centre(k), serial.particles().centre(k));
   EXPECT_EQ(parallel.counters().moves, serial.counters().moves);
   EXPECT_EQ(parallel.counters().cell_changes, serial.counters().cell_changes);
   EXPECT_GT(serial.counters().cell_changes, 0u);
@@ -343,16 +353,22 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   expect_message([&] { scene.trial_typed({0, 0, 0}, 3, {1, 0, 0, 0}); }, "type 3 does not exist");
   expect_message([&] { scene.trial_axes({0, 0, 0}, {1, -1, 1}, {1, 0, 0, 0}); }, "semi-axes");
   // A particle too large for the box (its reach would wrap around).
-  expect_message([&] { scene.move(3, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0})); },
-                 "periodic box is too small");
+  expect_message(
+      [&] {
+        scene.move(3, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0}));
+      },
+      "periodic box is too small");
   const std::uint32_t index[2] = {1, 7};
   const Particle moves[2] = {good, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0})};
   expect_message([&] { scene.move_many(index, moves, 2); }, "periodic box is too small");
   ParticleStore other;
   other.add_type({0.1, 0.1, 0.1});
   other.add_type({0.1, 0.2, 0.1});
-  expect_message([&] { scene.insert(other.particle_typed({0, 0, 0}, 1, {1, 0, 0, 0})); },
-                 "type 1 does not exist");
+  expect_message(
+      [&] {
+        scene.insert(other.particle_typed({0, 0, 0}, 1, {1, 0, 0, 0}));
+      },
+      "type 1 does not exist");
   // Unchanged: the same particles, and the same answers as a fresh scene's.
   EXPECT_EQ(scene.size(), 100u);
   for (int k = 0; k < 3; ++k) EXPECT_EQ(scene.particles().centre(k), s.centre(k));
@@ -406,7 +422,8 @@ TEST(HardParticleMC, CheckerboardSweepsGiveTheSameStateForEveryThreadCount) {
     EXPECT_GT(accepted, proposed / 10);
     EXPECT_EQ(mc.overlapping_pairs(), 0u);
     std::vector<double> all;
-    for (int k = 0; k < 3; ++k) all.insert(all.end(), mc.particles().centre(k).begin(), mc.particles().centre(k).end());
+    for (int k = 0; k < 3; ++k)
+      all.insert(all.end(), mc.particles().centre(k).begin(), mc.particles().centre(k).end());
     centres.push_back(all);
   }
   EXPECT_EQ(centres[0], centres[1]);

@@ -44,9 +44,10 @@ struct Moving {
       const double angle = turn * unit(engine) / 2;
       double axis[3] = {unit(engine), unit(engine), unit(engine)};
       const double norm = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
-      orientation[i] = multiply({std::cos(angle), std::sin(angle) * axis[0] / norm,
-                                 std::sin(angle) * axis[1] / norm, std::sin(angle) * axis[2] / norm},
-                                orientation[i]);
+      orientation[i] =
+          multiply({std::cos(angle), std::sin(angle) * axis[0] / norm,
+                    std::sin(angle) * axis[1] / norm, std::sin(angle) * axis[2] / norm},
+                   orientation[i]);
     }
   }
 };
@@ -84,14 +85,16 @@ void expect_same(const pwcontact::ScreenedPairs& got, const ParticleStore& s, co
   for (const auto& [pair, mu2] : expected) {
     auto f = found.find(pair);
     if (f == found.end()) {
-      EXPECT_GE(mu2, cutoff * cutoff - band) << where << ": missed (" << pair.first << ", " << pair.second << ")";
+      EXPECT_GE(mu2, cutoff * cutoff - band)
+          << where << ": missed (" << pair.first << ", " << pair.second << ")";
       continue;
     }
     EXPECT_NEAR(f->second, mu2, 1e-10 * mu2) << where;
   }
   for (const auto& [pair, mu2] : found)
     if (!expected.count(pair)) {
-      EXPECT_GE(mu2, cutoff * cutoff - band) << where << ": extra (" << pair.first << ", " << pair.second << ")";
+      EXPECT_GE(mu2, cutoff * cutoff - band)
+          << where << ": extra (" << pair.first << ", " << pair.second << ")";
     }
 }
 
@@ -112,8 +115,9 @@ TEST(SkinNeighborList, EveryStepIsTheFreshScreenAndTheListIsKeptWhileTheSkinAllo
       if (!r.rebuilt) {
         EXPECT_LE(r.largest_move, options.skin);
       }
-      expect_same(pairs, s, m.box, options.cutoff,
-                  std::string(triclinic ? "triclinic" : "cubic") + ", step " + std::to_string(step));
+      expect_same(
+          pairs, s, m.box, options.cutoff,
+          std::string(triclinic ? "triclinic" : "cubic") + ", step " + std::to_string(step));
       // Slow, with now and then a jump beyond the skin.
       m.move(engine, step % 17 == 16 ? 0.3 : 0.004, 0.004);
     }
@@ -143,7 +147,8 @@ TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {
 }
 
 TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
-  if (pwtest::on_portable_target()) GTEST_SKIP() << "the portable target makes no kernel evaluations to save";
+  if (pwtest::on_portable_target())
+    GTEST_SKIP() << "the portable target makes no kernel evaluations to save";
   std::mt19937_64 engine(30);
   Moving m = random_scene(3000, 15, 6, false);
   pwcontact::SkinOptions warm_options, cold_options;
@@ -165,8 +170,8 @@ TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
     }
     m.move(engine, 0.002, 0.002);
   }
-  std::printf("[ measured ] mean evaluations per pair, warm %.3f, cold %.3f\n", warm_evaluations / 10,
-              cold_evaluations / 10);
+  std::printf("[ measured ] mean evaluations per pair, warm %.3f, cold %.3f\n",
+              warm_evaluations / 10, cold_evaluations / 10);
   EXPECT_LT(warm_evaluations, 0.8 * cold_evaluations);
 }
 
@@ -207,10 +212,12 @@ TEST(WarmStart, AnyStartingLambdaGivesTheReferenceAnswer) {
       pwcontact::BatchOptions options;
       options.isa = isa;
       options.precision = pwcontact::Precision::double_precision;
-      const auto report = pwcontact::contact_function_batch(view, {mu2.data(), nullptr, status.data()}, options);
+      const auto report =
+          pwcontact::contact_function_batch(view, {mu2.data(), nullptr, status.data()}, options);
       for (std::size_t k = 0; k < n; ++k) {
         ASSERT_TRUE(pwcontact::is_valid(status[k]));
-        EXPECT_NEAR(mu2[k], exact_mu2[k], 1e-11 * exact_mu2[k]) << "start kind " << kind << ", pair " << k;
+        EXPECT_NEAR(mu2[k], exact_mu2[k], 1e-11 * exact_mu2[k])
+            << "start kind " << kind << ", pair " << k;
       }
       if (kind == 0)
         std::printf("[ measured ] %s: %.3f evaluations per pair from the exact lambda\n",

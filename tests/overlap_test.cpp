@@ -65,14 +65,10 @@ enum class FamilyName { random, pw85, scene_like, near_tangent };
 
 const char* family_name(FamilyName name) {
   switch (name) {
-    case FamilyName::random:
-      return "random";
-    case FamilyName::pw85:
-      return "pw85";
-    case FamilyName::scene_like:
-      return "scene_like";
-    case FamilyName::near_tangent:
-      return "near_tangent";
+    case FamilyName::random: return "random";
+    case FamilyName::pw85: return "pw85";
+    case FamilyName::scene_like: return "scene_like";
+    case FamilyName::near_tangent: return "near_tangent";
   }
   return "unknown";
 }
@@ -89,18 +85,10 @@ const Classified& family(FamilyName name, double cutoff, bool as_float) {
     built = with_oracle(convert_all<double>(convert_all<float>(family(name, cutoff, false).pairs)));
   } else {
     switch (name) {
-      case FamilyName::random:
-        built = with_oracle(make_random_pairs(20000, 93));
-        break;
-      case FamilyName::pw85:
-        built = with_oracle(pairs_of(pwcontact::pw85_family()));
-        break;
-      case FamilyName::scene_like:
-        built = scene_like_mix();
-        break;
-      case FamilyName::near_tangent:
-        built = near_tangent(cutoff);
-        break;
+      case FamilyName::random: built = with_oracle(make_random_pairs(20000, 93)); break;
+      case FamilyName::pw85: built = with_oracle(pairs_of(pwcontact::pw85_family())); break;
+      case FamilyName::scene_like: built = scene_like_mix(); break;
+      case FamilyName::near_tangent: built = near_tangent(cutoff); break;
     }
   }
   built.batch = make_batch(built.pairs);
@@ -217,18 +205,10 @@ TEST(OverlapCall, InvalidPairsGiveOverlapZeroAndTheirStatus) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = 0; i < pairs.size(); i += 7) {
     switch (i % 4) {
-      case 0:
-        pairs[i].r12[2] = nan;
-        break;
-      case 1:
-        pairs[i].q1 = {1, 2, 0, 1, 0, 1};
-        break;  // indefinite
-      case 2:
-        pairs[i].q2 = {1, 0, 0, 1, 0, 0};
-        break;  // singular
-      default:
-        pairs[i].q2[4] = std::numeric_limits<double>::infinity();
-        break;
+      case 0: pairs[i].r12[2] = nan; break;
+      case 1: pairs[i].q1 = {1, 2, 0, 1, 0, 1}; break;  // indefinite
+      case 2: pairs[i].q2 = {1, 0, 0, 1, 0, 0}; break;  // singular
+      default: pairs[i].q2[4] = std::numeric_limits<double>::infinity(); break;
     }
   }
   for (Isa isa : isas()) {

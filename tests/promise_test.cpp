@@ -129,8 +129,8 @@ std::vector<Pair<double>> size_ratio_pairs(std::size_t n, double low, double hig
   for (std::size_t k = 0; k < n; ++k) {
     const double ratio = log_uniform(engine, std::pow(10.0, low), std::pow(10.0, high));
     const bool spheres = k % 4 < 2;
-    const auto big = spheres ? pwcontact::sphere(ratio * ordinary_axis(engine))
-                             : ordinary_shape(engine, ratio);
+    const auto big =
+        spheres ? pwcontact::sphere(ratio * ordinary_axis(engine)) : ordinary_shape(engine, ratio);
     const auto small = spheres ? pwcontact::sphere(ordinary_axis(engine)) : ordinary_shape(engine);
     const auto n3 = direction(engine);
     pairs.push_back(k % 2 ? make_pair(n3, big, small) : make_pair(n3, small, big));
@@ -145,16 +145,16 @@ TEST_P(Promise, FloatLanesOnSizesFarApartAreValidOnlyWithinTheFloor) {
   const Solved set = solved(size_ratio_pairs(1500, 5, 9, 901));
   const std::string label = what("sizes 1e5 .. 1e9 apart", GetParam(), Precision::single_precision);
   for (const Requested& requested : {Requested{}, mu2_alone}) {
-    const BatchRun<double> run = run_batch(
-        make_batch(set.pairs), with_precision(with_isa(GetParam()), Precision::single_precision),
-        requested);
+    const BatchRun<double> run =
+        run_batch(make_batch(set.pairs),
+                  with_precision(with_isa(GetParam()), Precision::single_precision), requested);
     print_broken(label + " (" + describe(requested) + ")",
                  expect_promise_kept(set, run, float_eps, never, label));
   }
   // Float pairs: the oracle on the float inputs.
   const Solved rounded = solved(convert_all<double>(convert_all<float>(set.pairs)));
-  const BatchRun<float> run = run_batch(make_batch(convert_all<float>(set.pairs)),
-                                        with_isa(GetParam()));
+  const BatchRun<float> run =
+      run_batch(make_batch(convert_all<float>(set.pairs)), with_isa(GetParam()));
   BatchRun<double> widened;
   widened.mu2.assign(run.mu2.begin(), run.mu2.end());
   widened.status = run.status;
@@ -171,7 +171,8 @@ using Rational = boost::multiprecision::cpp_rational;
 bool exactly_positive_definite(const std::array<double, 6>& q) {
   const Rational a0(q[0]), a1(q[1]), a2(q[2]), a3(q[3]), a4(q[4]), a5(q[5]);
   const Rational minor2 = a0 * a3 - a1 * a1;
-  const Rational det = a0 * (a3 * a5 - a4 * a4) - a1 * (a1 * a5 - a2 * a4) + a2 * (a1 * a4 - a2 * a3);
+  const Rational det =
+      a0 * (a3 * a5 - a4 * a4) - a1 * (a1 * a5 - a2 * a4) + a2 * (a1 * a4 - a2 * a3);
   return a0 > 0 && minor2 > 0 && det > 0;
 }
 
@@ -237,8 +238,8 @@ TEST_P(Promise, FormsThatAreNotPositiveDefiniteAreNeverAnswered) {
   for (Precision precision :
        {Precision::double_precision, Precision::mixed, Precision::single_precision}) {
     const BatchOptions options = with_precision(with_isa(GetParam()), precision);
-    expect_never_valid(run_batch(batch, options).status, what("forms by a hair", GetParam(), precision),
-                       pairs);
+    expect_never_valid(run_batch(batch, options).status,
+                       what("forms by a hair", GetParam(), precision), pairs);
     expect_never_valid(run_overlap(batch, options).status,
                        what("forms by a hair, overlap", GetParam(), precision), pairs);
   }
@@ -256,7 +257,8 @@ TEST_P(Promise, FormsThatAreNotPositiveDefiniteAreNeverAnswered) {
 // Crossed needles and discs of aspect ratio log-uniform in [10^low, 10^high]:
 // r in the plane of the long axes ("plateau": f nearly flat about its
 // maximum) or in a random direction.
-std::vector<Pair<double>> crossed_pairs(std::size_t n, double low, double high, std::uint64_t seed) {
+std::vector<Pair<double>> crossed_pairs(std::size_t n, double low, double high,
+                                        std::uint64_t seed) {
   Engine engine(seed);
   std::vector<Pair<double>> pairs;
   for (std::size_t k = 0; k < n; ++k) {
@@ -270,8 +272,8 @@ std::vector<Pair<double>> crossed_pairs(std::size_t n, double low, double high, 
       return pack((1 - a * a) * normal * normal.transpose() + a * a * Eigen::Matrix3d::Identity());
     };
     const double out_of_plane = k % 2 ? 0 : (k % 4 == 0 ? 1e-3 : 1);
-    const Eigen::Vector3d d = uniform01(engine) * x + uniform01(engine) * y +
-                              out_of_plane * uniform01(engine) * z;
+    const Eigen::Vector3d d =
+        uniform01(engine) * x + uniform01(engine) * y + out_of_plane * uniform01(engine) * z;
     switch (k % 3) {
       case 0: pairs.push_back(make_pair({d[0], d[1], d[2]}, needle(x), needle(y))); break;
       case 1: pairs.push_back(make_pair({d[0], d[1], d[2]}, disc(x), disc(y))); break;
@@ -290,8 +292,8 @@ std::vector<Pair<double>> sphere_pairs(std::size_t n, std::uint64_t seed) {
     const double a1 = log_uniform(engine, 1e-4, 1e4), a2 = log_uniform(engine, 1e-4, 1e4);
     const double d = (a1 + a2) * (0.5 + 1.5 * uniform01(engine));
     const auto n3 = direction(engine);
-    pairs.push_back(make_pair({d * n3[0], d * n3[1], d * n3[2]}, pwcontact::sphere(a1),
-                              pwcontact::sphere(a2)));
+    pairs.push_back(
+        make_pair({d * n3[0], d * n3[1], d * n3[2]}, pwcontact::sphere(a1), pwcontact::sphere(a2)));
   }
   return pairs;
 }
@@ -331,9 +333,10 @@ TEST_P(Promise, SpheresOverTheDocumentedRadiusRangeGiveTheClosedFormToEightEpsIn
       MaxError error;
       for (std::size_t i = 0; i < pairs.size(); ++i) {
         const Pair<double>& p = pairs[i];
-        const long double a1 = std::sqrt((long double)p.q1[0]), a2 = std::sqrt((long double)p.q2[0]);
-        const long double r2 = (long double)p.r12[0] * p.r12[0] +
-                               (long double)p.r12[1] * p.r12[1] + (long double)p.r12[2] * p.r12[2];
+        const long double a1 = std::sqrt((long double)p.q1[0]),
+                          a2 = std::sqrt((long double)p.q2[0]);
+        const long double r2 = (long double)p.r12[0] * p.r12[0] + (long double)p.r12[1] * p.r12[1] +
+                               (long double)p.r12[2] * p.r12[2];
         ASSERT_TRUE(pwcontact::is_valid(run.status[i])) << label << ", pair " << i;
         error.add(i, relative_error(run.mu2[i], r2 / ((a1 + a2) * (a1 + a2))) / eps);
       }
@@ -368,7 +371,8 @@ TEST_P(Promise, NearTangentPairsOfVeryDifferentSizesAreClassifiedRightBeyondTheF
       misclassified += bool(overlap.overlap[i]) != overlapping;
       EXPECT_TRUE(pwcontact::is_valid(full.status[i]) && pwcontact::is_valid(overlap.status[i]));
     }
-    EXPECT_EQ(misclassified, 0u) << what("near-tangent sizes 1e8 .. 1e10 apart", GetParam(), precision);
+    EXPECT_EQ(misclassified, 0u) << what("near-tangent sizes 1e8 .. 1e10 apart", GetParam(),
+                                         precision);
   }
 }
 
@@ -378,8 +382,8 @@ TEST_P(Promise, NearTangentPairsOfVeryDifferentSizesAreClassifiedRightBeyondTheF
 // The oracle's geometry at its lambda, in 50 digits.
 pwcontact::ContactGeometry<long double> exact_geometry(const Pair<double>& p, long double lambda) {
   const Pair<Float50> q = convert<Float50>(p);
-  const auto g = pwcontact::contact_geometry<Float50>(q.r12.data(), q.q1.data(), q.q2.data(),
-                                                      Float50(lambda));
+  const auto g =
+      pwcontact::contact_geometry<Float50>(q.r12.data(), q.q1.data(), q.q2.data(), Float50(lambda));
   pwcontact::ContactGeometry<long double> out;
   for (int k = 0; k < 3; ++k) {
     out.contact_point[k] = g.contact_point[k].convert_to<long double>();
@@ -411,9 +415,12 @@ TEST_P(Promise, LambdaAndTheGeometryAreAsAccurateAsTheReferencePaths) {
         const auto [lambda, g, valid] = lane(i);
         if (!valid) continue;
         worst[0] = std::max(worst[0], absolute_error(lambda, set.exact[i].lambda));
-        worst[1] = std::max(worst[1], vector_error(as_vector(g.contact_point), as_vector(exact[i].contact_point)));
-        worst[2] = std::max(worst[2], vector_error(as_vector(g.normal), as_vector(exact[i].normal)));
-        worst[3] = std::max(worst[3], vector_error(as_vector(g.gradient), as_vector(exact[i].gradient)));
+        worst[1] = std::max(
+            worst[1], vector_error(as_vector(g.contact_point), as_vector(exact[i].contact_point)));
+        worst[2] =
+            std::max(worst[2], vector_error(as_vector(g.normal), as_vector(exact[i].normal)));
+        worst[3] =
+            std::max(worst[3], vector_error(as_vector(g.gradient), as_vector(exact[i].gradient)));
       }
       return worst;
     };
@@ -425,7 +432,8 @@ TEST_P(Promise, LambdaAndTheGeometryAreAsAccurateAsTheReferencePaths) {
     const auto reference_errors = errors_of([&](std::size_t i) {
       const ContactResult<double> r = reference(set.pairs[i]);
       const auto& p = set.pairs[i];
-      const auto g = pwcontact::contact_geometry<double>(p.r12.data(), p.q1.data(), p.q2.data(), r.lambda);
+      const auto g =
+          pwcontact::contact_geometry<double>(p.r12.data(), p.q1.data(), p.q2.data(), r.lambda);
       pwcontact::ContactGeometry<long double> wide;
       for (int k = 0; k < 3; ++k) {
         wide.contact_point[k] = g.contact_point[k];
@@ -438,9 +446,9 @@ TEST_P(Promise, LambdaAndTheGeometryAreAsAccurateAsTheReferencePaths) {
       const std::string label = what("crossed needles and discs, aspect 10^" + std::to_string(low) +
                                          " .. 10^" + std::to_string(high),
                                      GetParam(), precision);
-      const BatchRun<double> run = run_batch(make_batch(set.pairs),
-                                             with_precision(with_isa(GetParam()), precision),
-                                             Requested::everything());
+      const BatchRun<double> run =
+          run_batch(make_batch(set.pairs), with_precision(with_isa(GetParam()), precision),
+                    Requested::everything());
       const auto batch_errors = errors_of([&](std::size_t i) {
         pwcontact::ContactGeometry<long double> g;
         for (int k = 0; k < 3; ++k) {
@@ -473,9 +481,10 @@ std::vector<Pair<double>> at_distances(const std::vector<int>& exponents, std::s
       const double d = std::pow(10.0, k) * (1 + uniform01(engine));
       const auto n3 = direction(engine);
       const bool spheres = n % 3 == 0;
-      pairs.push_back(make_pair({d * n3[0], d * n3[1], d * n3[2]},
-                                spheres ? pwcontact::sphere(ordinary_axis(engine)) : ordinary_shape(engine),
-                                spheres ? pwcontact::sphere(ordinary_axis(engine)) : ordinary_shape(engine)));
+      pairs.push_back(
+          make_pair({d * n3[0], d * n3[1], d * n3[2]},
+                    spheres ? pwcontact::sphere(ordinary_axis(engine)) : ordinary_shape(engine),
+                    spheres ? pwcontact::sphere(ordinary_axis(engine)) : ordinary_shape(engine)));
     }
   return pairs;
 }
@@ -484,8 +493,8 @@ std::vector<Pair<double>> at_distances(const std::vector<int>& exponents, std::s
 auto out_of_range_where_exact_is = [](const Solved& set) {
   return [&set](std::size_t i, Status s) {
     const long double mu2 = set.exact[i].mu2;
-    const bool outside = !(mu2 >= std::numeric_limits<double>::min() &&
-                           mu2 <= std::numeric_limits<double>::max());
+    const bool outside =
+        !(mu2 >= std::numeric_limits<double>::min() && mu2 <= std::numeric_limits<double>::max());
     return s == Status::out_of_range && outside;
   };
 };
@@ -519,9 +528,10 @@ TEST_P(Promise, DistancesFarBelowOrBeyondTheSizesAreAnsweredOrFlaggedInEveryPrec
       if (accuracy == Accuracy::high && precision == Precision::single_precision) continue;
       const std::string label = what("distances 1e-170 .. 1e170", GetParam(), precision) +
                                 (accuracy == Accuracy::high ? ", accuracy high" : "");
-      const BatchOptions options =
-          with_precision(with_isa(GetParam()), precision, pwcontact::Formulation::automatic, accuracy);
-      const BatchRun<double> run = run_batch(make_batch(set.pairs), options, Requested::everything());
+      const BatchOptions options = with_precision(with_isa(GetParam()), precision,
+                                                  pwcontact::Formulation::automatic, accuracy);
+      const BatchRun<double> run =
+          run_batch(make_batch(set.pairs), options, Requested::everything());
       const double arithmetic_eps = precision == Precision::single_precision ? float_eps : eps;
       print_broken(label, expect_promise_kept(set, run, arithmetic_eps, allowed, label));
       expect_out_of_range_flagged(set, run, label);
@@ -530,13 +540,15 @@ TEST_P(Promise, DistancesFarBelowOrBeyondTheSizesAreAnsweredOrFlaggedInEveryPrec
       const OverlapRun overlap = run_overlap(make_batch(set.pairs), options);
       for (std::size_t i = 0; i < set.pairs.size(); ++i) {
         EXPECT_TRUE(pwcontact::is_valid(overlap.status[i])) << label << ", overlap, pair " << i;
-        EXPECT_EQ(bool(overlap.overlap[i]), set.exact[i].mu2 < 1) << label << ", overlap, pair " << i;
+        EXPECT_EQ(bool(overlap.overlap[i]), set.exact[i].mu2 < 1)
+            << label << ", overlap, pair " << i;
       }
     }
   std::vector<Status> scalar;
   for (const auto& p : set.pairs) scalar.push_back(reference(p).status);
   for (std::size_t i = 0; i < set.pairs.size(); ++i)
-    EXPECT_TRUE(pwcontact::is_valid(scalar[i]) || allowed(i, scalar[i])) << "scalar path, pair " << i;
+    EXPECT_TRUE(pwcontact::is_valid(scalar[i]) || allowed(i, scalar[i]))
+        << "scalar path, pair " << i;
 }
 
 TEST_P(Promise, NearlyCoincidentCentresGiveLambdaAndTheNormalAndDoNotDependOnTheirNeighbours) {
@@ -551,15 +563,17 @@ TEST_P(Promise, NearlyCoincidentCentresGiveLambdaAndTheNormalAndDoNotDependOnThe
   for (Precision precision : {Precision::double_precision, Precision::mixed}) {
     const std::string label = what("nearly coincident centres", GetParam(), precision);
     const BatchOptions options = with_precision(with_isa(GetParam()), precision);
-    const BatchRun<double> alone = run_batch(make_batch(set.pairs), options, Requested::everything());
+    const BatchRun<double> alone =
+        run_batch(make_batch(set.pairs), options, Requested::everything());
     expect_out_of_range_flagged(set, alone, label);
     MaxError lambda_error, normal_error;
     for (std::size_t i = 0; i < set.pairs.size(); ++i) {
       ASSERT_TRUE(pwcontact::is_valid(alone.status[i]) || alone.status[i] == Status::out_of_range)
           << label << ", pair " << i << ": " << pwcontact::status_name(alone.status[i]);
       lambda_error.add(i, absolute_error(alone.lambda[i], set.exact[i].lambda));
-      normal_error.add(i, vector_error(lane_vector(alone.normal, i),
-                                       as_vector(exact_geometry(set.pairs[i], set.exact[i].lambda).normal)));
+      normal_error.add(
+          i, vector_error(lane_vector(alone.normal, i),
+                          as_vector(exact_geometry(set.pairs[i], set.exact[i].lambda).normal)));
     }
     print_measured(label + ", lambda absolute error", lambda_error);
     print_measured(label + ", normal error", normal_error);
@@ -571,7 +585,8 @@ TEST_P(Promise, NearlyCoincidentCentresGiveLambdaAndTheNormalAndDoNotDependOnThe
       mixed.push_back(set.pairs[i]);
       mixed.push_back(ordinary[i % ordinary.size()]);
     }
-    const BatchRun<double> together = run_batch(make_batch(mixed), options, Requested::everything());
+    const BatchRun<double> together =
+        run_batch(make_batch(mixed), options, Requested::everything());
     std::vector<std::size_t> lanes;
     for (std::size_t i = 0; i < set.pairs.size(); ++i) lanes.push_back(2 * i);
     expect_bitwise_equal(alone, select_lanes(together, lanes), label + ", interleaved");
@@ -592,8 +607,9 @@ std::vector<Pair<double>> tiny_distances_to_big_shapes(std::size_t n, double siz
     const double size = std::pow(10.0, size_low + (size_high - size_low) * uniform01(engine));
     const double d = std::pow(10.0, r_low + (r_high - r_low) * uniform01(engine));
     const auto n3 = direction(engine);
-    const Pair<double> p = make_pair({d * n3[0], d * n3[1], d * n3[2]}, ordinary_shape(engine, size),
-                                     ordinary_shape(engine, size * (0.5 + uniform01(engine))));
+    const Pair<double> p =
+        make_pair({d * n3[0], d * n3[1], d * n3[2]}, ordinary_shape(engine, size),
+                  ordinary_shape(engine, size * (0.5 + uniform01(engine))));
     const Pair<double> rounded = convert<double>(convert<T>(p));  // exactly what T holds
     if (rounded.r12 != std::array<double, 3>{0, 0, 0}) pairs.push_back(rounded);
   }
@@ -642,16 +658,16 @@ TEST_P(Promise, SubnormalDistancesBetweenLargeShapesAreFlaggedNotAnsweredZero) {
   // 1e15 in size gave mu2 = 0, status ok (the scaled r12 rounded to zero, a
   // coincident pair to the kernels); the same in double below ~1e-300.
   const Solved floats = solved(tiny_distances_to_big_shapes<float>(96, 3, 15, -45, -30, 915));
-  expect_underflow_flagged<float>(floats, with_isa(GetParam()), float_eps,
-                                  what("float pairs, subnormal r12", GetParam(),
-                                       Precision::single_precision));
-  const Solved doubles = solved(tiny_distances_to_big_shapes<double>(96, 100, 150, -323, -300, 916));
+  expect_underflow_flagged<float>(
+      floats, with_isa(GetParam()), float_eps,
+      what("float pairs, subnormal r12", GetParam(), Precision::single_precision));
+  const Solved doubles =
+      solved(tiny_distances_to_big_shapes<double>(96, 100, 150, -323, -300, 916));
   for (Precision precision :
        {Precision::double_precision, Precision::mixed, Precision::single_precision})
-    expect_underflow_flagged<double>(
-        doubles, with_precision(with_isa(GetParam()), precision),
-        precision == Precision::single_precision ? float_eps : eps,
-        what("double pairs, subnormal r12", GetParam(), precision));
+    expect_underflow_flagged<double>(doubles, with_precision(with_isa(GetParam()), precision),
+                                     precision == Precision::single_precision ? float_eps : eps,
+                                     what("double pairs, subnormal r12", GetParam(), precision));
 }
 
 // ---------------------------------------------------------------------------
@@ -678,8 +694,10 @@ std::pair<long double, long double> diagonal_maximum(const DiagonalPair& p) {
   Float50 lo = 0, hi = 1;
   for (int it = 0; it < 200; ++it) {
     const Float50 a = lo + (hi - lo) / 3, b = hi - (hi - lo) / 3;
-    if (diagonal_f(p, a) < diagonal_f(p, b)) lo = a;
-    else hi = b;
+    if (diagonal_f(p, a) < diagonal_f(p, b))
+      lo = a;
+    else
+      hi = b;
   }
   const Float50 l = (lo + hi) / 2;
   return {diagonal_f(p, l).convert_to<long double>(), l.convert_to<long double>()};
@@ -715,8 +733,8 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
   std::vector<Pair<double>> as_pairs;
   std::vector<long double> exact, condition;
   for (const DiagonalPair& p : pairs) {
-    as_pairs.push_back(make_pair(p.r, {p.d1[0], 0, 0, p.d1[1], 0, p.d1[2]},
-                                 {p.d2[0], 0, 0, p.d2[1], 0, p.d2[2]}));
+    as_pairs.push_back(
+        make_pair(p.r, {p.d1[0], 0, 0, p.d1[1], 0, p.d1[2]}, {p.d2[0], 0, 0, p.d2[1], 0, p.d2[2]}));
     const auto [mu2, l] = diagonal_maximum(p);
     exact.push_back(mu2);
     long double smallest = INFINITY, largest = 0;
@@ -736,20 +754,21 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
         ++flagged;
         EXPECT_EQ(status[i], Status::not_converged) << label << ", pair " << i;
         if (std::getenv("PWCONTACT_PRINT_FLAGGED"))
-          std::printf("flagged pair %zu: r %.17g %.17g %.17g d1 %.17g %.17g %.17g d2 %.17g %.17g %.17g\n", i,
-                      pairs[i].r[0], pairs[i].r[1], pairs[i].r[2], pairs[i].d1[0], pairs[i].d1[1],
-                      pairs[i].d1[2], pairs[i].d2[0], pairs[i].d2[1], pairs[i].d2[2]);
+          std::printf(
+              "flagged pair %zu: r %.17g %.17g %.17g d1 %.17g %.17g %.17g d2 %.17g %.17g %.17g\n",
+              i, pairs[i].r[0], pairs[i].r[1], pairs[i].r[2], pairs[i].d1[0], pairs[i].d1[1],
+              pairs[i].d1[2], pairs[i].d2[0], pairs[i].d2[1], pairs[i].d2[2]);
         continue;
       }
       const double error = relative_error(mu2[i], exact[i]);
       ratio.add(i, error / (arithmetic_eps * double(condition[i])));
       EXPECT_LE(error, floor_factor * arithmetic_eps * double(condition[i]))
-          << label << ", pair " << i << ": mu2 " << mu2[i] << ", exact " << double(exact[i])
-          << ", " << pwcontact::status_name(status[i]);
+          << label << ", pair " << i << ": mu2 " << mu2[i] << ", exact " << double(exact[i]) << ", "
+          << pwcontact::status_name(status[i]);
     }
     print_measured(label + ", error / (eps cond(Q(lambda*)))", ratio);
-    std::printf("[ measured ] %s: %zu of %zu lanes with an invalid status\n", label.c_str(), flagged,
-                pairs.size());
+    std::printf("[ measured ] %s: %zu of %zu lanes with an invalid status\n", label.c_str(),
+                flagged, pairs.size());
   };
   for (Precision precision :
        {Precision::double_precision, Precision::mixed, Precision::single_precision})
@@ -757,9 +776,10 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
       if (accuracy == Accuracy::high && precision == Precision::single_precision) continue;
       const std::string label = what("a form flat to 1e-20 .. 1e-323", GetParam(), precision) +
                                 (accuracy == Accuracy::high ? ", accuracy high" : "");
-      const BatchOptions options =
-          with_precision(with_isa(GetParam()), precision, pwcontact::Formulation::automatic, accuracy);
-      const BatchRun<double> run = run_batch(make_batch(as_pairs), options, Requested::everything());
+      const BatchOptions options = with_precision(with_isa(GetParam()), precision,
+                                                  pwcontact::Formulation::automatic, accuracy);
+      const BatchRun<double> run =
+          run_batch(make_batch(as_pairs), options, Requested::everything());
       check(run.mu2, run.status, precision == Precision::single_precision ? float_eps : eps, label);
       if (accuracy == Accuracy::high) continue;
       // Overlap answers at cutoffs on both sides of every pair's mu.
@@ -767,7 +787,8 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
         const OverlapRun overlap = run_overlap(make_batch(as_pairs), options, cutoff);
         for (std::size_t i = 0; i < pairs.size(); ++i) {
           if (std::abs(exact[i] - cutoff * cutoff) <= 1e-9L * cutoff * cutoff) continue;
-          EXPECT_TRUE(pwcontact::is_valid(overlap.status[i]) || overlap.status[i] == Status::not_converged)
+          EXPECT_TRUE(pwcontact::is_valid(overlap.status[i]) ||
+                      overlap.status[i] == Status::not_converged)
               << label << ", overlap, pair " << i;
           if (!pwcontact::is_valid(overlap.status[i])) continue;
           EXPECT_EQ(bool(overlap.overlap[i]), exact[i] < cutoff * cutoff)
@@ -829,12 +850,13 @@ TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
        {Precision::double_precision, Precision::mixed, Precision::single_precision})
     for (Accuracy accuracy : {Accuracy::standard, Accuracy::high}) {
       if (accuracy == Accuracy::high && precision == Precision::single_precision) continue;
-      const std::string label = what("a form 1e6 .. 1e150 times larger along two axes", GetParam(),
-                                     precision) +
-                                (accuracy == Accuracy::high ? ", accuracy high" : "");
-      const BatchOptions options = with_precision(
-          with_isa(GetParam()), precision, pwcontact::Formulation::automatic, accuracy);
-      const BatchRun<double> run = run_batch(make_batch(set.pairs), options, Requested::everything());
+      const std::string label =
+          what("a form 1e6 .. 1e150 times larger along two axes", GetParam(), precision) +
+          (accuracy == Accuracy::high ? ", accuracy high" : "");
+      const BatchOptions options = with_precision(with_isa(GetParam()), precision,
+                                                  pwcontact::Formulation::automatic, accuracy);
+      const BatchRun<double> run =
+          run_batch(make_batch(set.pairs), options, Requested::everything());
       const bool in_float = precision == Precision::single_precision;
       print_broken(label, in_float ? expect_promise_kept(set, run, float_eps, float_allowed, label)
                                    : expect_promise_kept(set, run, eps, never, label));
@@ -846,12 +868,13 @@ TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
     const double error = relative_error(r.mu2, set.exact[i].mu2);
     ratio.add(i, error / (eps * set.condition[i]));
     EXPECT_LE(error, floor_factor * eps * set.condition[i])
-        << "scalar path, pair " << i << ": mu2 " << r.mu2 << ", exact "
-        << double(set.exact[i].mu2) << ", lambda " << r.lambda << ", exact "
-        << double(set.exact[i].lambda);
+        << "scalar path, pair " << i << ": mu2 " << r.mu2 << ", exact " << double(set.exact[i].mu2)
+        << ", lambda " << r.lambda << ", exact " << double(set.exact[i].lambda);
   }
-  print_measured("a form 1e6 .. 1e150 times larger along two axes, scalar path, "
-                 "error / (eps cond(Q(lambda*)))", ratio);
+  print_measured(
+      "a form 1e6 .. 1e150 times larger along two axes, scalar path, "
+      "error / (eps cond(Q(lambda*)))",
+      ratio);
 }
 
 // ---------------------------------------------------------------------------
@@ -869,10 +892,11 @@ TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
   const Family families[] = {
       {"sizes 1e5 .. 1e12 apart", solved(size_ratio_pairs(400, 5, 12, 941))},
       {"crossed needles and discs, aspect 30 .. 1e7", solved(crossed_pairs(300, 1.5, 7, 942))},
-      {"a form 1e6 .. 1e150 times larger along two axes", solved(huge_along_two_axes_pairs(96, 943))},
+      {"a form 1e6 .. 1e150 times larger along two axes",
+       solved(huge_along_two_axes_pairs(96, 943))},
   };
-  const char* start_names[] = {"the exact lambda", "lambda* (1 + 1e-3)", "1e-300", "1 - 1e-16",
-                               "0.5", "NaN"};
+  const char* start_names[] = {
+      "the exact lambda", "lambda* (1 + 1e-3)", "1e-300", "1 - 1e-16", "0.5", "NaN"};
   for (const Family& family : families) {
     const std::size_t n = family.set.pairs.size();
     const PairBatch<double> batch = make_batch(family.set.pairs);
@@ -887,8 +911,9 @@ TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
       std::vector<double> start(n);
       for (std::size_t i = 0; i < n; ++i) {
         const double exact = double(family.set.exact[i].lambda);
-        const double choices[6] = {exact, std::min(exact * (1 + 1e-3), 1 - 1e-9), 1e-300, 1 - 1e-16,
-                                   0.5, std::numeric_limits<double>::quiet_NaN()};
+        const double choices[6] = {exact,  std::min(exact * (1 + 1e-3), 1 - 1e-9),
+                                   1e-300, 1 - 1e-16,
+                                   0.5,    std::numeric_limits<double>::quiet_NaN()};
         start[i] = choices[kind];
       }
       for (bool with_lambda : {false, true}) {
@@ -993,22 +1018,23 @@ TEST_P(Promise, AccuracyHighMeetsItsDocumentedBound) {
   for (double exponent : {8.0, 10.0, 12.0, 14.0, 16.0}) {
     const Solved set = solved(parallel_thin_pairs(exponent, 300, 915 + std::uint64_t(exponent)));
     const std::string label = what("parallel flat pairs, cond ~1e" + std::to_string(int(exponent)),
-                                   GetParam(), Precision::double_precision) + ", accuracy high";
+                                   GetParam(), Precision::double_precision) +
+                              ", accuracy high";
     const BatchRun<double> run = run_batch(
-        make_batch(set.pairs),
-        with_precision(with_isa(GetParam()), Precision::double_precision,
-                       pwcontact::Formulation::automatic, Accuracy::high));
+        make_batch(set.pairs), with_precision(with_isa(GetParam()), Precision::double_precision,
+                                              pwcontact::Formulation::automatic, Accuracy::high));
     MaxError kernel, fallback;
     for (std::size_t i = 0; i < set.pairs.size(); ++i) {
       if (set.exact[i].status != Status::ok) continue;
-      ASSERT_TRUE(pwcontact::is_valid(run.status[i])) << label << ", pair " << i << ", status " << pwcontact::status_name(run.status[i]);
+      ASSERT_TRUE(pwcontact::is_valid(run.status[i]))
+          << label << ", pair " << i << ", status " << pwcontact::status_name(run.status[i]);
       const double error = relative_error(run.mu2[i], set.exact[i].mu2);
       const double c = set.condition[i];
-      const double bound = run.status[i] == Status::ok ? eps + eps * c * eps * c
-                                                       : eps + long_double_eps * c;
+      const double bound =
+          run.status[i] == Status::ok ? eps + eps * c * eps * c : eps + long_double_eps * c;
       (run.status[i] == Status::ok ? kernel : fallback).add(i, error / bound);
       EXPECT_LE(error, floor_factor * bound) << label << ", pair " << i << ", cond " << c << ", "
-                                            << pwcontact::status_name(run.status[i]);
+                                             << pwcontact::status_name(run.status[i]);
     }
     print_measured(label + ", status ok: error / (eps + (eps cond)^2)", kernel);
     print_measured(label + ", ok_fallback: error / (eps + eps_ld cond)", fallback);
@@ -1024,7 +1050,8 @@ TEST_P(Promise, AccuracyHighMeetsItsDocumentedBound) {
 // type: status ok, within 16 (eps + eps cond) of the oracle.
 template <class T>
 void expect_reference_converges_on_flat_pairs(double exponent, std::uint64_t seed_offset) {
-  const Solved set = solved(parallel_thin_pairs(exponent, 300, 915 + std::uint64_t(exponent) + seed_offset));
+  const Solved set =
+      solved(parallel_thin_pairs(exponent, 300, 915 + std::uint64_t(exponent) + seed_offset));
   const double type_eps = double(std::numeric_limits<T>::epsilon());
   const std::string label = "parallel flat pairs, cond ~1e" + std::to_string(int(exponent)) +
                             ", seed +" + std::to_string(seed_offset) + ", " +

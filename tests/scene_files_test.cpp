@@ -33,7 +33,8 @@ const fs::path data_dir = PWCONTACT_TEST_DATA;
 std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force(const pwcontact::ParticleStore& s,
                                                               const Box& box, double cutoff) {
   const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
-  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const double a[3][3] = {
+      {lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
   const int reach_z = box.two_dimensional ? 0 : 2, reach = box.periodic ? 2 : 0;
   std::set<std::pair<std::uint32_t, std::uint32_t>> found;
   for (std::uint32_t i = 0; i < s.size(); ++i)
@@ -71,8 +72,10 @@ void expect_screen_matches_brute_force(const Scene& scene, double cutoff, const 
 // The bounding radius the store gives semi-axes a (rounded outwards).
 void expect_radii(const Scene& scene, std::size_t i, double largest, double smallest,
                   const std::string& what) {
-  EXPECT_NEAR(scene.particles.bounding_radius()[i], largest, 1e-12 * largest) << what << ", particle " << i;
-  EXPECT_NEAR(scene.particles.inscribed_radius()[i], smallest, 1e-12 * smallest) << what << ", particle " << i;
+  EXPECT_NEAR(scene.particles.bounding_radius()[i], largest, 1e-12 * largest)
+      << what << ", particle " << i;
+  EXPECT_NEAR(scene.particles.inscribed_radius()[i], smallest, 1e-12 * smallest)
+      << what << ", particle " << i;
 }
 
 std::string message_of(const std::function<void()>& f) {
@@ -291,12 +294,14 @@ with open('seen.txt', 'w') as out:
   std::getline(seen, logged);
   EXPECT_EQ(same, "True");
   std::string expected;
-  for (std::size_t i = 0; i < values.size(); ++i) expected += (i ? " " : "") + std::to_string(values[i]);
+  for (std::size_t i = 0; i < values.size(); ++i)
+    expected += (i ? " " : "") + std::to_string(values[i]);
   EXPECT_EQ(logged, expected);
   // Values that are not one per particle: refused.
   std::ostringstream out;
-  EXPECT_NE(message_of([&] { pwcontact::write_gsd_frame_with_values(path, 1, "overlaps", {1, 2}, out); })
-                .find("2 values for the 300 particles"),
+  EXPECT_NE(message_of([&] {
+              pwcontact::write_gsd_frame_with_values(path, 1, "overlaps", {1, 2}, out);
+            }).find("2 values for the 300 particles"),
             std::string::npos);
 }
 
@@ -307,13 +312,20 @@ TEST_F(GsdWritten, MalformedGsdFilesAreRefusedWithWhatIsWrong) {
   const auto size = fs::file_size(path);
   fs::copy_file(path, directory_ / "cut.gsd");
   fs::resize_file(directory_ / "cut.gsd", size / 2);
-  EXPECT_NE(message_of([&] { pwcontact::read_gsd((directory_ / "cut.gsd").string(), 0); }).find("truncated"),
+  EXPECT_NE(message_of([&] {
+              pwcontact::read_gsd((directory_ / "cut.gsd").string(), 0);
+            }).find("truncated"),
             std::string::npos);
-  EXPECT_NE(message_of([&] { pwcontact::read_gsd(path, 3); }).find("frame 3 is not in the file (it has 3 frames)"),
+  EXPECT_NE(message_of([&] {
+              pwcontact::read_gsd(path, 3);
+            }).find("frame 3 is not in the file (it has 3 frames)"),
             std::string::npos);
-  std::ofstream(directory_ / "text.gsd") << "this is not a GSD file, but it is long enough to have a header ..."
-                                         << std::string(300, '.');
-  EXPECT_NE(message_of([&] { pwcontact::read_gsd((directory_ / "text.gsd").string()); }).find("not a GSD file"),
+  std::ofstream(directory_ / "text.gsd")
+      << "this is not a GSD file, but it is long enough to have a header ..."
+      << std::string(300, '.');
+  EXPECT_NE(message_of([&] {
+              pwcontact::read_gsd((directory_ / "text.gsd").string());
+            }).find("not a GSD file"),
             std::string::npos);
   // Shapes, types and orientations that cannot be ellipsoids.
   const char* bad = R"(
@@ -347,15 +359,19 @@ write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
   auto message = [&](const char* file) {
     return message_of([&] { pwcontact::read_gsd((directory_ / file).string()); });
   };
-  EXPECT_NE(message("polygon.gsd").find("type 0 ('A'): its shape is 'Polygon', not an ellipsoid"), std::string::npos)
+  EXPECT_NE(message("polygon.gsd").find("type 0 ('A'): its shape is 'Polygon', not an ellipsoid"),
+            std::string::npos)
       << message("polygon.gsd");
   EXPECT_NE(message("flat.gsd").find("b = 0"), std::string::npos) << message("flat.gsd");
-  EXPECT_NE(message("typeid.gsd").find("particle 1 has typeid 4, but there are 1 types"), std::string::npos)
-      << message("typeid.gsd");
-  EXPECT_NE(message("zero_q.gsd").find("frame 0: particle 1"), std::string::npos) << message("zero_q.gsd");
-  // In two dimensions: rotations about z only, centres in the plane.
-  EXPECT_NE(message("tilted_2d.gsd").find("particle 1: a two-dimensional scene, but its orientation"),
+  EXPECT_NE(message("typeid.gsd").find("particle 1 has typeid 4, but there are 1 types"),
             std::string::npos)
+      << message("typeid.gsd");
+  EXPECT_NE(message("zero_q.gsd").find("frame 0: particle 1"), std::string::npos)
+      << message("zero_q.gsd");
+  // In two dimensions: rotations about z only, centres in the plane.
+  EXPECT_NE(
+      message("tilted_2d.gsd").find("particle 1: a two-dimensional scene, but its orientation"),
+      std::string::npos)
       << message("tilted_2d.gsd");
   EXPECT_NE(message("lifted_2d.gsd").find("particle 1: a two-dimensional scene, but its z is 0.5"),
             std::string::npos)
@@ -363,8 +379,9 @@ write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
   // An Ellipse shape: an ellipse in 2D, refused in 3D.
   const Scene ellipses = pwcontact::read_gsd((directory_ / "ellipse_2d.gsd").string());
   for (std::size_t i = 0; i < 2; ++i) expect_radii(ellipses, i, 1, 0.5, "Ellipse a 1 b 0.5");
-  EXPECT_NE(message("ellipse_3d.gsd").find("its shape is an Ellipse, but the scene is three-dimensional"),
-            std::string::npos)
+  EXPECT_NE(
+      message("ellipse_3d.gsd").find("its shape is an Ellipse, but the scene is three-dimensional"),
+      std::string::npos)
       << message("ellipse_3d.gsd");
   EXPECT_NE(message("zero_q.gsd").find("is zero"), std::string::npos) << message("zero_q.gsd");
 }
@@ -410,7 +427,8 @@ TEST(SceneFiles, ALammpsDumpsFramesWithTheBoundingBoxConvertedBack) {
   }
   for (std::size_t i = 0; i < 50; ++i) {
     // Frame 0 is the data file's scene (positions with 6 digits).
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(first.particles.centre(k)[i], data.particles.centre(k)[i], 1e-4);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(first.particles.centre(k)[i], data.particles.centre(k)[i], 1e-4);
     for (int k = 0; k < 6; ++k) EXPECT_NEAR(first.particles.q(k)[i], data.particles.q(k)[i], 1e-5);
     // Each frame moved by (0.1, 0.2, 0.3), and LAMMPS wrapped the atoms that
     // left the box: what remains of the displacement is a lattice vector
@@ -421,12 +439,14 @@ TEST(SceneFiles, ALammpsDumpsFramesWithTheBoundingBoxConvertedBack) {
     const auto& b = last.box;
     const double s2 = d[2] / b.length[2];
     const double s1 = (d[1] - b.tilt[2] * b.length[2] * s2) / b.length[1];
-    const double s0 = (d[0] - b.tilt[0] * b.length[1] * s1 - b.tilt[1] * b.length[2] * s2) / b.length[0];
+    const double s0 =
+        (d[0] - b.tilt[0] * b.length[1] * s1 - b.tilt[1] * b.length[2] * s2) / b.length[0];
     for (double s : {s0, s1, s2}) EXPECT_NEAR(s, std::round(s), 1e-4) << "atom " << i + 1;
   }
   expect_screen_matches_brute_force(last, 1.3, "LAMMPS dump, last frame");
   // Without the column names: the usual ones are looked for, and named.
-  EXPECT_NE(message_of([&] { pwcontact::read_lammps_dump(path); }).find("no column shapex"), std::string::npos);
+  EXPECT_NE(message_of([&] { pwcontact::read_lammps_dump(path); }).find("no column shapex"),
+            std::string::npos);
 }
 
 TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
@@ -436,9 +456,11 @@ TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
   std::ifstream in(data_dir / "lammps_triclinic.data");
   std::vector<std::string> lines;
   for (std::string line; std::getline(in, line);) lines.push_back(line);
-  auto write_with = [&](const std::string& name, std::size_t line_index, const std::string& replacement) {
+  auto write_with = [&](const std::string& name, std::size_t line_index,
+                        const std::string& replacement) {
     std::ofstream out(dir / name);
-    for (std::size_t k = 0; k < lines.size(); ++k) out << (k == line_index ? replacement : lines[k]) << "\n";
+    for (std::size_t k = 0; k < lines.size(); ++k)
+      out << (k == line_index ? replacement : lines[k]) << "\n";
     return (dir / name).string();
   };
   std::size_t atoms = 0, ellipsoids = 0;
@@ -451,10 +473,13 @@ TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
   };
   const std::string point = write_with("point.data", atoms + 2, "1 1 0 3.3 1 1 1 0 0 0");
   EXPECT_NE(message(point).find(":" + std::to_string(atoms + 3) + ": atom 1 has ellipsoidflag 0"),
-            std::string::npos) << message(point);
+            std::string::npos)
+      << message(point);
   const std::string short_line = write_with("short.data", ellipsoids + 2, "1 1.2 0.8 0.6 1 0 0");
-  EXPECT_NE(message(short_line).find(":" + std::to_string(ellipsoids + 3) + ": an Ellipsoids line has 8 fields"),
-            std::string::npos) << message(short_line);
+  EXPECT_NE(message(short_line)
+                .find(":" + std::to_string(ellipsoids + 3) + ": an Ellipsoids line has 8 fields"),
+            std::string::npos)
+      << message(short_line);
   const std::string zero = write_with("zero.data", ellipsoids + 2, "1 1.2 0 0.6 1 0 0 0");
   EXPECT_NE(message(zero).find("atom 1: "), std::string::npos) << message(zero);
   fs::remove_all(dir);

@@ -4,17 +4,17 @@
 // pairs across the periodic boundary). Pairs within 1e-9 of the cutoff
 // (|mu^2 - cutoff^2| <= 1e-9 cutoff^2, the overlap answers' documented
 // band) may differ; they are counted and printed.
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 #include <omp.h>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <random>
 #include <limits>
 #include <map>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -120,8 +120,8 @@ struct Comparison {
 
 // The screen's pairs against the brute force: sorted, i < j, and the same
 // set except for pairs within the band.
-Comparison compare(const ParticleStore& s, const Box& box, double cutoff,
-                   const ScreenedPairs& got, const std::string& what) {
+Comparison compare(const ParticleStore& s, const Box& box, double cutoff, const ScreenedPairs& got,
+                   const std::string& what) {
   Comparison c;
   c.found = got.size();
   std::set<std::pair<std::uint32_t, std::uint32_t>> screened;
@@ -155,9 +155,10 @@ Comparison compare(const ParticleStore& s, const Box& box, double cutoff,
                   << cutoff * cutoff << ") " << (screened.count({i, j}) ? "found" : "missed")
                   << " by the screen, the opposite by the brute force";
   }
-  std::printf("[ measured ] %s: %zu pairs found, %zu expected, %zu differing within 1e-9 of the "
-              "cutoff, %zu across the periodic boundary\n",
-              what.c_str(), c.found, c.expected, c.differing_within_band, c.across_boundary);
+  std::printf(
+      "[ measured ] %s: %zu pairs found, %zu expected, %zu differing within 1e-9 of the "
+      "cutoff, %zu across the periodic boundary\n",
+      what.c_str(), c.found, c.expected, c.differing_within_band, c.across_boundary);
   return c;
 }
 
@@ -178,16 +179,16 @@ Comparison expect_same_pairs(const SceneSpec& spec, double cutoff, const std::st
   const ScreenReport report = screen(s, box, cutoff, got);
   EXPECT_EQ(report.particles, spec.particles);
   EXPECT_EQ(report.candidate_pairs, report.decided_out + report.decided_out_by_projection +
-                                        report.decided_in +
-                                        report.decided_spheres + report.decided_same_form +
-                                        report.solved)
+                                        report.decided_in + report.decided_spheres +
+                                        report.decided_same_form + report.solved)
       << what;
   EXPECT_EQ(report.found, got.size()) << what;
   EXPECT_EQ(report.invalid, 0u) << what;
-  std::printf("[ measured ] %s: %zu size classes, %zu candidates, %zu out by the bounding "
-              "spheres and %zu by projections, %zu in by the inscribed spheres, %zu solved\n",
-              what.c_str(), report.size_classes, report.candidate_pairs, report.decided_out,
-              report.decided_out_by_projection, report.decided_in, report.solved);
+  std::printf(
+      "[ measured ] %s: %zu size classes, %zu candidates, %zu out by the bounding "
+      "spheres and %zu by projections, %zu in by the inscribed spheres, %zu solved\n",
+      what.c_str(), report.size_classes, report.candidate_pairs, report.decided_out,
+      report.decided_out_by_projection, report.decided_in, report.solved);
   Comparison c = compare(s, box, cutoff, got, what);
   c.report = report;
   return c;
@@ -210,8 +211,8 @@ TEST(Screen, PolydisperseEllipsoidsInOpenBoundariesMatchTheBruteForce) {
 TEST(Screen, NeedlesAndDiscsWithAspectRatiosTo50MatchTheBruteForce) {
   // Equatorial radii 0.03 .. 0.05: needles up to 2.5 long, discs 6e-4 thin;
   // enough of them that many touch.
-  const Comparison periodic =
-      expect_same_pairs({3000, 1.0 / 50, 50, 0.03, 0.05, 10.5, true, 3}, 1, "aspect to 50, periodic");
+  const Comparison periodic = expect_same_pairs({3000, 1.0 / 50, 50, 0.03, 0.05, 10.5, true, 3}, 1,
+                                                "aspect to 50, periodic");
   const Comparison open =
       expect_same_pairs({3000, 1.0 / 50, 50, 0.03, 0.05, 10.5, false, 4}, 1, "aspect to 50, open");
   EXPECT_GT(periodic.expected, 50u);
@@ -400,7 +401,8 @@ TEST(Screen, PeriodicCoordinatesBillionsOfBoxLengthsAwayGiveTheSamePairs) {
       moved[k] = centre[k] + (unit(engine) < 0.5 ? -8 : 8) * lengths;
     }
     const std::array<double, 3> axes = {0.2 + 0.3 * unit(engine), 0.3, 0.2 + 0.4 * unit(engine)};
-    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine), normal(engine)};
+    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine),
+                                     normal(engine)};
     near.add_axes(centre, axes, q);
     far.add_axes(moved, axes, q);
   }
@@ -471,12 +473,12 @@ TEST(Screen, ErrorsInsideTheSearchReachTheCallerAsExceptions) {
     ScreenedPairs got;
     EXPECT_THROW(screen(s, box, 1, got), std::invalid_argument);
   }
-  EXPECT_THROW(pwcontact::for_each_candidate_pair(
-                   s, box, 1, 2,
-                   [](int, std::uint32_t i, std::uint32_t, const double*) {
-                     if (i == 100) throw std::runtime_error("visitor");
-                   }),
-               std::runtime_error);
+  EXPECT_THROW(
+      pwcontact::for_each_candidate_pair(s, box, 1, 2,
+                                         [](int, std::uint32_t i, std::uint32_t, const double*) {
+                                           if (i == 100) throw std::runtime_error("visitor");
+                                         }),
+      std::runtime_error);
 }
 
 TEST(Screen, ACutoffWhoseSquareIsNotANormalDoubleIsRefusedWithItsValue) {
@@ -512,7 +514,8 @@ std::set<std::pair<std::uint32_t, std::uint32_t>> brute_force_images(const Parti
                                                                      const Box& box,
                                                                      double cutoff) {
   const double lx = box.length[0], ly = box.length[1], lz = box.length[2];
-  const double a[3][3] = {{lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
+  const double a[3][3] = {
+      {lx, 0, 0}, {box.tilt[0] * ly, ly, 0}, {box.tilt[1] * lz, box.tilt[2] * lz, lz}};
   const int nz = box.two_dimensional ? 0 : 2;
   const std::size_t n = s.size();
   // Every centre moved into the box first, by whole lattice vectors: the
@@ -565,7 +568,8 @@ ParticleStore triclinic_scene(std::size_t count, const Box& box, std::uint64_t s
     const double size = 0.2 + 0.2 * unit(engine), aspect = 0.4 + 1.6 * unit(engine);
     s.add_axes({box.length[0] * (6 * unit(engine) - 3), box.length[1] * (6 * unit(engine) - 3),
                 box.length[2] * (6 * unit(engine) - 3)},
-               {size, size, size * aspect}, {normal(engine), normal(engine), normal(engine), normal(engine)});
+               {size, size, size * aspect},
+               {normal(engine), normal(engine), normal(engine), normal(engine)});
   }
   return s;
 }
@@ -596,12 +600,14 @@ TEST(Screen, TriclinicBoxesMatchABruteForceOverEveryImage) {
   for (const auto& t : tilts) {
     const Box box = Box::triclinic(7, 6.5, 6, t[0], t[1], t[2]);
     const ParticleStore s = triclinic_scene(900, box, seed++);
-    expect_same_pairs_as_every_image(s, box, 1, "tilts " + std::to_string(t[0]) + " " +
-                                                    std::to_string(t[1]) + " " + std::to_string(t[2]));
+    expect_same_pairs_as_every_image(
+        s, box, 1,
+        "tilts " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]));
   }
   // A neighbour list (cutoff 1.4) in the most skewed box.
   const Box skewed = Box::triclinic(8, 7.5, 7, -0.9, 0.7, -0.8);
-  expect_same_pairs_as_every_image(triclinic_scene(700, skewed, 79), skewed, 1.4, "skewed, cutoff 1.4");
+  expect_same_pairs_as_every_image(triclinic_scene(700, skewed, 79), skewed, 1.4,
+                                   "skewed, cutoff 1.4");
 }
 
 TEST(Screen, ATiltedBoxThinnerThanTwiceTheReachAcrossAFaceIsAnError) {
@@ -658,7 +664,10 @@ long double ellipse_mu2(const long double r[2], const long double a[3], const lo
   long double lo = 0, hi = 1;
   for (int k = 0; k < 200; ++k) {
     const long double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
-    if (f(m1) < f(m2)) lo = m1; else hi = m2;
+    if (f(m1) < f(m2))
+      lo = m1;
+    else
+      hi = m2;
   }
   return f((lo + hi) / 2);
 }
@@ -684,8 +693,9 @@ TEST(Screen, EllipsesInTwoDimensionsMatchABruteForceWithThe2DContactFunction) {
         long double best = std::numeric_limits<long double>::infinity(), distance = 0;
         for (int n1 = -2; n1 <= 2; ++n1)
           for (int n2 = -2; n2 <= 2; ++n2) {
-            const long double r[2] = {(long double)s.centre(0)[j] - s.centre(0)[i] + n1 * lx + n2 * xy * ly,
-                                      (long double)s.centre(1)[j] - s.centre(1)[i] + n2 * ly};
+            const long double r[2] = {
+                (long double)s.centre(0)[j] - s.centre(0)[i] + n1 * lx + n2 * xy * ly,
+                (long double)s.centre(1)[j] - s.centre(1)[i] + n2 * ly};
             if (r[0] * r[0] + r[1] * r[1] >= reach * reach) continue;
             const long double mu2 = ellipse_mu2(r, a, b);
             if (mu2 < best) {
@@ -699,8 +709,8 @@ TEST(Screen, EllipsesInTwoDimensionsMatchABruteForceWithThe2DContactFunction) {
           // In a tilted box the centres are wrapped through fractional
           // coordinates, to a few eps L: mu^2 (quadratic in r) moves by
           // up to ~8 eps L / |r| relatively.
-          tolerance_of[{i, j}] =
-              1e-13 + 16 * std::numeric_limits<double>::epsilon() * lx * (1 + std::abs(xy)) / double(distance);
+          tolerance_of[{i, j}] = 1e-13 + 16 * std::numeric_limits<double>::epsilon() * lx *
+                                             (1 + std::abs(xy)) / double(distance);
         }
       }
     for (bool with_mu2 : {false, true}) {
@@ -716,9 +726,10 @@ TEST(Screen, EllipsesInTwoDimensionsMatchABruteForceWithThe2DContactFunction) {
                                       tolerance_of[{got.i[k], got.j[k]}]);
       }
       EXPECT_EQ(found, expected) << "tilt " << xy << (with_mu2 ? ", with mu2" : "");
-      std::printf("[ measured ] 2D, tilt %.1f%s: %zu pairs (%zu by the 2D oracle), mu2 within %.3g "
-                  "of its tolerance from the 2D oracle's\n",
-                  xy, with_mu2 ? ", with mu2" : "", found.size(), expected.size(), worst);
+      std::printf(
+          "[ measured ] 2D, tilt %.1f%s: %zu pairs (%zu by the 2D oracle), mu2 within %.3g "
+          "of its tolerance from the 2D oracle's\n",
+          xy, with_mu2 ? ", with mu2" : "", found.size(), expected.size(), worst);
       if (with_mu2) {
         EXPECT_LE(worst, 1);
       }
@@ -792,9 +803,8 @@ TEST(Screen, ACandidateListOfOnesOwnGivesTheSamePairsAsTheCellLists) {
     options.with_mu2 = with_mu2;
     ScreenedPairs from_cells, from_list;
     pwcontact::screen_pairs(s, box, options, from_cells);
-    const ScreenReport report =
-        pwcontact::screen_candidates(s, box, first.data(), second.data(), first.size(), options,
-                                     from_list);
+    const ScreenReport report = pwcontact::screen_candidates(s, box, first.data(), second.data(),
+                                                             first.size(), options, from_list);
     EXPECT_EQ(report.candidate_pairs, first.size());
     EXPECT_EQ(from_list.i, from_cells.i) << "with_mu2 " << with_mu2;
     EXPECT_EQ(from_list.j, from_cells.j) << "with_mu2 " << with_mu2;
@@ -909,7 +919,8 @@ ParticleStore typed_scene(const std::vector<std::array<double, 3>>& types, std::
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint32_t t = std::uint32_t(engine() % types.size());
     const std::array<double, 3> c = {box * unit(engine), box * unit(engine), box * unit(engine)};
-    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine), normal(engine)};
+    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine),
+                                     normal(engine)};
     if (mixed && k % 4 == 3)
       s.add_axes(c, types[t], q);
     else
@@ -921,7 +932,8 @@ ParticleStore typed_scene(const std::vector<std::array<double, 3>>& types, std::
 TEST(Screen, TypedParticlesAreStoredAsTheirSemiAxesWouldBe) {
   // A typed particle has the form add_axes makes of the same numbers and its
   // type's radii, bit for bit (the radii computed once per type).
-  const std::vector<std::array<double, 3>> types = {{0.2, 0.5, 1.2}, {0.7, 0.7, 0.7}, {1e-3, 2, 5e2}};
+  const std::vector<std::array<double, 3>> types = {
+      {0.2, 0.5, 1.2}, {0.7, 0.7, 0.7}, {1e-3, 2, 5e2}};
   const ParticleStore typed = typed_scene(types, 300, 10, false, 51);
   std::mt19937_64 engine(51);
   ParticleStore by_axes;
@@ -950,7 +962,8 @@ TEST(Screen, TypedParticlesAreStoredAsTheirSemiAxesWouldBe) {
 TEST(Screen, ScenesOfShapeTypesMatchTheBruteForce) {
   // Three types (an ellipsoid, a sphere, a needle) with untyped particles
   // among them, periodic and open, overlaps and a neighbour list.
-  const std::vector<std::array<double, 3>> types = {{0.2, 0.5, 1.2}, {0.6, 0.6, 0.6}, {0.05, 0.05, 1.5}};
+  const std::vector<std::array<double, 3>> types = {
+      {0.2, 0.5, 1.2}, {0.6, 0.6, 0.6}, {0.05, 0.05, 1.5}};
   const ParticleStore s = typed_scene(types, 1500, 11, true, 52);
   for (const Box& box : {Box::periodic_box(11, 11, 11), Box::open()})
     for (double cutoff : {1.0, 1.3}) {
@@ -984,7 +997,8 @@ TEST(Screen, OneShapeTypeDeclaresIdenticalShapesAndAlignedPairsAreTakenInClosedF
   std::mt19937_64 engine(54);
   std::uniform_real_distribution<double> unit(0, 1);
   for (int k = 0; k < 1200; ++k)
-    aligned.add_typed({9 * unit(engine), 9 * unit(engine), 9 * unit(engine)}, 0, {0.9, 0.1, -0.3, 0.2});
+    aligned.add_typed({9 * unit(engine), 9 * unit(engine), 9 * unit(engine)}, 0,
+                      {0.9, 0.1, -0.3, 0.2});
   const Box aligned_box = Box::periodic_box(9, 9, 9);
   ScreenedPairs aligned_pairs;
   const ScreenReport aligned_report = screen(aligned, aligned_box, 1, aligned_pairs);
@@ -1013,17 +1027,25 @@ TEST(Screen, BadTypesAndTypedParticlesAreRefusedNamingThem) {
     }
     return std::string("no error");
   };
-  EXPECT_EQ(message([&] { s.add_type({1, 0, 2}); }),
+  EXPECT_EQ(message([&] {
+              s.add_type({1, 0, 2});
+            }),
             "type 0: semi-axes must be positive and finite, got (1, 0, 2)");
   EXPECT_EQ(s.types(), 0u);
   s.add_type({1, 2, 3});
-  EXPECT_EQ(message([&] { s.add_typed({0, 0, 0}, 1, {1, 0, 0, 0}); }),
+  EXPECT_EQ(message([&] {
+              s.add_typed({0, 0, 0}, 1, {1, 0, 0, 0});
+            }),
             "particle 0: type 1 does not exist (1 types)");
   EXPECT_EQ(s.size(), 0u);
-  EXPECT_NE(message([&] { s.add_typed({0, 0, 0}, 0, {0, 0, 0, 0}); }).find("particle 0: "),
+  EXPECT_NE(message([&] {
+              s.add_typed({0, 0, 0}, 0, {0, 0, 0, 0});
+            }).find("particle 0: "),
             std::string::npos);
   EXPECT_EQ(s.size(), 0u);
-  EXPECT_EQ(message([&] { s.add_typed({NAN, 0, 0}, 0, {1, 0, 0, 0}); }),
+  EXPECT_EQ(message([&] {
+              s.add_typed({NAN, 0, 0}, 0, {1, 0, 0, 0});
+            }),
             "particle 0: centre is not finite");
   s.add_typed({0, 0, 0}, 0, {1, 0, 0, 0});
   EXPECT_EQ(s.size(), 1u);

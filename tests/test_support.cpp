@@ -68,14 +68,10 @@ Pair<double> scaled_to_mu2(const Pair<double>& p, long double mu2, long double t
 
 const char* tangent_kind_name(TangentKind kind) {
   switch (kind) {
-    case TangentKind::spheres:
-      return "spheres";
-    case TangentKind::coaxial_spheroids:
-      return "coaxial spheroids";
-    case TangentKind::general:
-      return "general";
-    case TangentKind::elongated:
-      return "elongated";
+    case TangentKind::spheres: return "spheres";
+    case TangentKind::coaxial_spheroids: return "coaxial spheroids";
+    case TangentKind::general: return "general";
+    case TangentKind::elongated: return "elongated";
   }
   return "unknown";
 }

@@ -35,8 +35,8 @@ Answers work(const PairBatch<double>& pairs, const PairBatch<float>& floats,
                                     options);
   a.mu2_float.resize(n);
   std::vector<Status> status_float(n);
-  pwcontact::contact_function_batch(floats.view(), {a.mu2_float.data(), nullptr, status_float.data()},
-                                    options);
+  pwcontact::contact_function_batch(floats.view(),
+                                    {a.mu2_float.data(), nullptr, status_float.data()}, options);
   a.overlap.resize(n);
   pwcontact::overlap_batch(pairs.view(), {a.overlap.data(), status.data()}, options, 1.0);
   for (std::size_t i = 0; i < n; i += 97) a.reference.push_back(reference(pair_at(pairs, i)).mu2);
@@ -107,7 +107,8 @@ TEST(ThreadSafety, AMovingSceneAnswersCallersInSeveralThreadsAndMovesInParallel)
   std::vector<std::thread> threads;
   for (int t = 0; t < callers; ++t)
     threads.emplace_back([&, t] {
-      for (std::size_t k = 0; k < trials.size(); ++k) single[t].push_back(scene.overlaps(trials[k], exclude[k]));
+      for (std::size_t k = 0; k < trials.size(); ++k)
+        single[t].push_back(scene.overlaps(trials[k], exclude[k]));
       batched[t].resize(trials.size());
       scene.overlaps(trials.data(), exclude.data(), trials.size(), batched[t].data(), 1 + t % 2);
     });

@@ -87,7 +87,7 @@ struct PairBatchView {
 template <class T>
 struct ContactOutputs {
   T* mu2 = nullptr;
-  T* lambda = nullptr;        // the maximiser lambda_0 of f (theory eq. 6)
+  T* lambda = nullptr;  // the maximiser lambda_0 of f (theory eq. 6)
   Status* status = nullptr;
   // x0 - c1: where the two ellipsoids, both scaled by mu about their centres,
   // touch (eq. 9a: x0 - c1 = (1 - lambda) Q1 Q^-1 r12), relative to centre 1.
@@ -207,14 +207,14 @@ struct BatchReport {
   std::size_t decided_by_prefilter = 0;
   std::size_t decided_by_certificate = 0;
   std::size_t overlapping = 0;
-  double mean_evaluations = 0;  // (f, g, g') evaluations per pair in the kernels,
-                                // SIMD lanes included, reference path excluded
-  Isa isa = Isa::automatic;     // the instruction set actually used
-  int iterations = 0;           // the iteration setting used (0: automatic)
-  Precision precision = Precision::automatic;        // as resolved
+  double mean_evaluations = 0;                 // (f, g, g') evaluations per pair in the kernels,
+                                               // SIMD lanes included, reference path excluded
+  Isa isa = Isa::automatic;                    // the instruction set actually used
+  int iterations = 0;                          // the iteration setting used (0: automatic)
+  Precision precision = Precision::automatic;  // as resolved
   Formulation formulation = Formulation::automatic;  // as resolved
   Accuracy accuracy = Accuracy::standard;
-  int threads = 0;              // the thread count actually used
+  int threads = 0;  // the thread count actually used
 };
 
 const char* precision_name(Precision p) noexcept;      // "auto", "double", "float", "mixed"

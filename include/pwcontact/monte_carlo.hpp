@@ -37,13 +37,13 @@
 namespace pwcontact {
 
 struct HardParticleMCOptions {
-  double packing = 0.5;        // the packing fraction compress_to_packing reaches
-  double translation = 0.1;    // the largest displacement along each axis, d
-  double rotation = 0.1;       // the largest turn, a (radians)
-  bool adapt_steps = true;     // d and a scaled after each sweep towards 30 % acceptance
+  double packing = 0.5;      // the packing fraction compress_to_packing reaches
+  double translation = 0.1;  // the largest displacement along each axis, d
+  double rotation = 0.1;     // the largest turn, a (radians)
+  bool adapt_steps = true;   // d and a scaled after each sweep towards 30 % acceptance
   std::uint64_t seed = 1;
-  int threads = 0;             // 0: omp_get_max_threads()
-  BatchOptions batch;          // precision and instruction set of the overlap kernels
+  int threads = 0;     // 0: omp_get_max_threads()
+  BatchOptions batch;  // precision and instruction set of the overlap kernels
 };
 
 struct SweepReport {

@@ -49,8 +49,8 @@ struct Neighbor {
 
 // What the scene did since it was made.
 struct MovingSceneCounters {
-  std::size_t rebuilds = 0;       // of the whole grid (overflow, size, open-box drift)
-  std::size_t cell_changes = 0;   // moves that took a particle to another cell
+  std::size_t rebuilds = 0;      // of the whole grid (overflow, size, open-box drift)
+  std::size_t cell_changes = 0;  // moves that took a particle to another cell
   std::size_t moves = 0, inserts = 0, removes = 0;  // (queries are const: not counted)
 };
 

@@ -27,8 +27,8 @@ namespace pwcontact {
 
 template <class T>
 struct ContactResult {
-  T mu2;           // the contact function, eq. (6); NaN when status is invalid
-  T lambda;        // its maximiser lambda_0 in [0, 1]; NaN when invalid
+  T mu2;     // the contact function, eq. (6); NaN when status is invalid
+  T lambda;  // its maximiser lambda_0 in [0, 1]; NaN when invalid
   Status status;
   int iterations;  // evaluations of (f, g, g') that were needed
 };
@@ -112,8 +112,8 @@ Definiteness definiteness(const T a[6]) {
   const T l21 = t / d1;
   const T c2 = l20 * a[2], c3 = l21 * t;
   const T d2 = a[5] - c2 - c3;
-  const T cancelled2 = a[5] + abs(c2) + c3 + abs(l21) * (abs(a[4]) + abs(l20 * a[1])) +
-                       l21 * l21 * cancelled1;
+  const T cancelled2 =
+      a[5] + abs(c2) + c3 + abs(l21) * (abs(a[4]) + abs(l20 * a[1])) + l21 * l21 * cancelled1;
   if (d2 < -(T(4) * eps * cancelled2 + underflow)) return Definiteness::not_positive;
   if (!(d2 > T(64) * eps * cancelled2 + underflow)) return Definiteness::undecided;
   return Definiteness::positive;
@@ -200,8 +200,7 @@ Residual<T> evaluate(const T r[3], const T q1[6], const T q2[6], T lambda) {
   Residual<T> out;
   out.f = lambda * mu * rs;
   out.g = lambda * lambda * dot3(s, b) - mu * mu * dot3(s, a);
-  out.dg = T(2) * (ya[0] * yb[0] / ldlt.d0 + ya[1] * yb[1] / ldlt.d1 +
-                   ya[2] * yb[2] / ldlt.d2);
+  out.dg = T(2) * (ya[0] * yb[0] / ldlt.d0 + ya[1] * yb[1] / ldlt.d1 + ya[2] * yb[2] / ldlt.d2);
   return out;
 }
 
@@ -260,8 +259,8 @@ struct ScaledPair {
     using std::frexp;
     using std::ldexp;
     using std::sqrt;
-    const T largest = max_diagonal(q1_in) > max_diagonal(q2_in) ? max_diagonal(q1_in)
-                                                                 : max_diagonal(q2_in);
+    const T largest =
+        max_diagonal(q1_in) > max_diagonal(q2_in) ? max_diagonal(q1_in) : max_diagonal(q2_in);
     if (largest > 0) frexp(sqrt(largest), &q_exponent);
     T r_largest = abs(r12[0]);
     for (int k = 1; k < 3; ++k)
@@ -315,7 +314,7 @@ T below_one() {
 
 template <class T>
 struct Maximum {
-  T f = 0;         // f(lambda) of the scaled pair
+  T f = 0;  // f(lambda) of the scaled pair
   T lambda = 0;
   bool converged = false;
 };
@@ -412,8 +411,7 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   const T nan = std::numeric_limits<T>::quiet_NaN();
   const T eps = std::numeric_limits<T>::epsilon();
 
-  if (!detail::all_finite(r12, 3) || !detail::all_finite(q1, 6) ||
-      !detail::all_finite(q2, 6))
+  if (!detail::all_finite(r12, 3) || !detail::all_finite(q1, 6) || !detail::all_finite(q2, 6))
     return {nan, nan, Status::non_finite_input, 0};
   // Decided on the stored numbers, before any scaling could round them.
   if (!detail::positive_definite(q1)) return {nan, nan, Status::q1_not_positive_definite, 0};
@@ -495,8 +493,7 @@ ContactResult<T> contact_function(const T r12[3], const T q1[6], const T q2[6],
   }
   if (!found.converged) return {nan, nan, Status::not_converged, iterations};
   const T mu2 = scaled.unscaled_mu2(found.f);
-  return {mu2, swapped ? T(1) - found.lambda : found.lambda, detail::range_status(mu2),
-          iterations};
+  return {mu2, swapped ? T(1) - found.lambda : found.lambda, detail::range_status(mu2), iterations};
 }
 
 // What else the maximiser lambda gives (doc/theory.md eq. 43), with
@@ -548,8 +545,7 @@ extern template ContactResult<double> contact_function<double>(const double*, co
                                                                const double*,
                                                                const ReferenceOptions&);
 extern template ContactResult<float> contact_function<float>(const float*, const float*,
-                                                             const float*,
-                                                             const ReferenceOptions&);
+                                                             const float*, const ReferenceOptions&);
 extern template ContactGeometry<double> contact_geometry<double>(const double*, const double*,
                                                                  const double*, double);
 extern template ContactGeometry<float> contact_geometry<float>(const float*, const float*,

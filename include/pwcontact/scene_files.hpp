@@ -26,12 +26,12 @@ namespace pwcontact {
 
 struct Scene {
   ParticleStore particles;
-  Box box;                                 // periodic as the file gives it
-  std::vector<std::string> type_names;     // GSD particles/types, LAMMPS atom types
-  std::vector<std::uint32_t> type_id;      // per particle, an index into type_names
-  std::vector<std::uint64_t> id;           // LAMMPS atom ids (empty for GSD: the tags are 0 .. N-1)
-  std::uint64_t frame = 0;                 // the frame read
-  std::uint64_t frames = 1;                // how many the file has
+  Box box;                              // periodic as the file gives it
+  std::vector<std::string> type_names;  // GSD particles/types, LAMMPS atom types
+  std::vector<std::uint32_t> type_id;   // per particle, an index into type_names
+  std::vector<std::uint64_t> id;        // LAMMPS atom ids (empty for GSD: the tags are 0 .. N-1)
+  std::uint64_t frame = 0;              // the frame read
+  std::uint64_t frames = 1;             // how many the file has
 };
 
 // Frame `frame` of a GSD file (negative: from the end, -1 the last), with

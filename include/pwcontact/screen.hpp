@@ -173,8 +173,7 @@ class ParticleStore {
   // A particle with the smallest and largest eigenvalues of its Q (each
   // within a few eps |Q|), rounding the radii to the safe side.
   static Particle untyped_particle(const std::string& who, const std::array<double, 3>& centre,
-                                   const std::array<double, 6>& q, double smallest,
-                                   double largest);
+                                   const std::array<double, 6>& q, double smallest, double largest);
   struct Radii {
     double bounding, inscribed, sphere;
   };
@@ -227,24 +226,24 @@ NeighborList neighbor_list(const ScreenedPairs& pairs, std::size_t particles,
 // What a screen did, stage by stage.
 struct ScreenReport {
   std::size_t particles = 0;
-  int threads = 0;                     // the thread count used
-  std::size_t size_classes = 0;        // cell lists built (one per class of bounding radius)
-  bool identical_shapes = false;       // every particle the same bounding and inscribed radius
-                                       // (to 1e-12), or all of one shape type: one reach for
-                                       // every pair in the search
-  bool one_type = false;               // every particle of one shape type (ParticleStore types)
-  std::size_t candidate_pairs = 0;     // pairs whose bounding reaches the cell lists compared
-  std::size_t decided_out = 0;         // |r| >= cutoff (R_i + R_j): apart, no solve
+  int threads = 0;                  // the thread count used
+  std::size_t size_classes = 0;     // cell lists built (one per class of bounding radius)
+  bool identical_shapes = false;    // every particle the same bounding and inscribed radius
+                                    // (to 1e-12), or all of one shape type: one reach for
+                                    // every pair in the search
+  bool one_type = false;            // every particle of one shape type (ParticleStore types)
+  std::size_t candidate_pairs = 0;  // pairs whose bounding reaches the cell lists compared
+  std::size_t decided_out = 0;      // |r| >= cutoff (R_i + R_j): apart, no solve
   std::size_t decided_out_by_projection = 0;  // left by that, apart by a separating plane
                                               // normal to r12, no solve
-  std::size_t decided_in = 0;          // |r| < cutoff (rho_i + rho_j): found, no solve
-  std::size_t decided_spheres = 0;     // pairs of spheres left by those: closed form, no solve
-  std::size_t decided_same_form = 0;   // pairs of one form Q (same shape and orientation) left:
-                                       // mu^2 = r^T Q^-1 r / 4, no solve (cond(Q) <= 1e4)
-  std::size_t solved = 0;              // pairs given to the batch path
-  std::size_t invalid = 0;             // solved pairs with an invalid status (not found)
+  std::size_t decided_in = 0;                 // |r| < cutoff (rho_i + rho_j): found, no solve
+  std::size_t decided_spheres = 0;    // pairs of spheres left by those: closed form, no solve
+  std::size_t decided_same_form = 0;  // pairs of one form Q (same shape and orientation) left:
+                                      // mu^2 = r^T Q^-1 r / 4, no solve (cond(Q) <= 1e4)
+  std::size_t solved = 0;             // pairs given to the batch path
+  std::size_t invalid = 0;            // solved pairs with an invalid status (not found)
   std::size_t found = 0;
-  BatchReport batch;                   // of the solve
+  BatchReport batch;  // of the solve
   // Seconds per stage: size classes and cell lists; candidates and
   // prefilters; compaction into a batch; the solve; collecting and sorting.
   double seconds_cells = 0, seconds_candidates = 0, seconds_compaction = 0, seconds_solve = 0,
@@ -271,17 +270,16 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 // lists (size_classes 0, seconds_cells 0).
 ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
                                const std::uint32_t* first, const std::uint32_t* second,
-                               std::size_t count, const ScreenOptions& options,
-                               ScreenedPairs& out);
+                               std::size_t count, const ScreenOptions& options, ScreenedPairs& out);
 
 // Every pair (i < j) the cell lists compare for this cutoff — a superset of
 // the pairs with mu < cutoff, before any prefilter — with r12 = c_j - c_i by
 // the minimum image: visit(thread, i, j, r12) is called from the OpenMP
 // thread (0 .. threads - 1) that found the pair, in no particular order. For
 // pipelines of one's own, and to measure against. Throws as screen_pairs.
-void for_each_candidate_pair(
-    const ParticleStore& particles, const Box& box, double cutoff, int threads,
-    const std::function<void(int thread, std::uint32_t i, std::uint32_t j, const double r12[3])>&
-        visit);
+void for_each_candidate_pair(const ParticleStore& particles, const Box& box, double cutoff,
+                             int threads,
+                             const std::function<void(int thread, std::uint32_t i, std::uint32_t j,
+                                                      const double r12[3])>& visit);
 
 }  // namespace pwcontact

@@ -29,9 +29,7 @@ enum class Status : std::uint8_t {
 // Number of distinct status codes; codes are 0 .. status_count - 1.
 inline constexpr int status_count = 7;
 
-constexpr bool is_valid(Status s) noexcept {
-  return s == Status::ok || s == Status::ok_fallback;
-}
+constexpr bool is_valid(Status s) noexcept { return s == Status::ok || s == Status::ok_fallback; }
 
 // Short stable name ("ok", "non_finite_input", ...), as printed by the CLI.
 const char* status_name(Status s) noexcept;

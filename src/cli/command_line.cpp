@@ -265,16 +265,17 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
       "for the precision; newton, in lambda; log_odds, in ln(lambda / (1 - lambda)), "
       "steadier for elongated shapes. The summary names the one used");
   add_threads_option(parser, options.threads, "results");
-  parser.add_value(
-      {"--isa"}, "auto|sse2|avx2|avx512|fallback",
-      "auto = PWCONTACT_ISA if set, else the best; here " +
-          std::string(isa_name(supported_isas().front())),
-      "instruction set of the batch path; this CPU runs " + supported_isa_list(),
-      [&options](std::string_view value) {
-        const std::optional<Isa> isa = parse_isa(value);
-        if (!isa) throw std::invalid_argument(quoted(value) + " is not auto, sse2, avx2, avx512 or fallback");
-        options.isa = *isa;
-      });
+  parser.add_value({"--isa"}, "auto|sse2|avx2|avx512|fallback",
+                   "auto = PWCONTACT_ISA if set, else the best; here " +
+                       std::string(isa_name(supported_isas().front())),
+                   "instruction set of the batch path; this CPU runs " + supported_isa_list(),
+                   [&options](std::string_view value) {
+                     const std::optional<Isa> isa = parse_isa(value);
+                     if (!isa)
+                       throw std::invalid_argument(quoted(value) +
+                                                   " is not auto, sse2, avx2, avx512 or fallback");
+                     options.isa = *isa;
+                   });
 }
 
 void check_solver_options(const OptionParser& parser, const SolverOptions& options) {
@@ -306,8 +307,9 @@ int resolve_thread_count(int threads) { return threads > 0 ? threads : omp_get_m
 
 void add_output_option(OptionParser& parser, std::string& output, const std::string& what) {
   parser.add_value({"-o", "--output"}, "OUT", "- = standard output",
-                   "write " + what + " to OUT; it appears only when the run succeeds (written "
-                   "beside it, then renamed into place)",
+                   "write " + what +
+                       " to OUT; it appears only when the run succeeds (written "
+                       "beside it, then renamed into place)",
                    [&output](std::string_view path) { output = path; });
 }
 

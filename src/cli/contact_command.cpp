@@ -98,10 +98,9 @@ OptionParser contact_parser(ContactOptions& options) {
   add_choice(parser, "--mode", Choices<Mode>{{Mode::full, Mode::overlap}, mode_name}, options.mode,
              "full: mu^2 and the columns of --outputs; overlap: whether each pair overlaps "
              "(see Output)");
-  parser.add_value(
-      {"--cutoff"}, "MU", "1",
-      "--mode overlap only: a pair overlaps when mu < MU; positive and finite",
-      [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
+  parser.add_value({"--cutoff"}, "MU", "1",
+                   "--mode overlap only: a pair overlaps when mu < MU; positive and finite",
+                   [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
   parser.add_value({"--outputs"}, "LIST", column_list(default_columns),
                    "--mode full only: the columns of each line, comma-separated, each at most "
                    "once, in the order given: " +
@@ -151,21 +150,13 @@ char* write_triple(char* out, const std::vector<T> (&column)[3], std::size_t i) 
 template <class T>
 char* write_column(char* out, Column column, const Solution<T>& solution, std::size_t i) {
   switch (column) {
-    case Column::mu2:
-      return write_number(out, solution.mu2[i]);
-    case Column::lambda:
-      return write_number(out, solution.lambda[i]);
-    case Column::status:
-      return std::to_chars(out, out + 3, int(solution.status[i])).ptr;
-    case Column::contact_point:
-      return write_triple(out, solution.contact_point, i);
-    case Column::normal:
-      return write_triple(out, solution.normal, i);
-    case Column::gradient:
-      return write_triple(out, solution.gradient, i);
-    case Column::overlap:
-      *out = solution.overlap[i] ? '1' : '0';
-      return out + 1;
+    case Column::mu2: return write_number(out, solution.mu2[i]);
+    case Column::lambda: return write_number(out, solution.lambda[i]);
+    case Column::status: return std::to_chars(out, out + 3, int(solution.status[i])).ptr;
+    case Column::contact_point: return write_triple(out, solution.contact_point, i);
+    case Column::normal: return write_triple(out, solution.normal, i);
+    case Column::gradient: return write_triple(out, solution.gradient, i);
+    case Column::overlap: *out = solution.overlap[i] ? '1' : '0'; return out + 1;
   }
   return out;
 }
@@ -216,8 +207,8 @@ void write_solution(const Solution<T>& solution, const ContactOptions& options,
 
 // One block of pairs, solved as asked and written.
 template <class T>
-Solution<T> solve(const PairBatch<T>& pairs, const ContactOptions& options,
-                  const Request& request, int threads) {
+Solution<T> solve(const PairBatch<T>& pairs, const ContactOptions& options, const Request& request,
+                  int threads) {
   return options.scalar ? solve_reference(pairs, request, threads)
                         : solve_batch(pairs, request, options.solver);
 }
@@ -323,9 +314,9 @@ ExitStatus run_contact(const Arguments& arguments) {
 
   const std::size_t count = single_scalar ? total_float.report.pairs : total.report.pairs;
   std::fprintf(stderr,
-               "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s",
-               count, input.name().c_str(), describe_seconds(read_seconds).c_str(),
-               output.name().c_str(), describe_seconds(write_seconds).c_str(),
+               "pwcontact contact: %zu pairs from %s (read in %s) to %s (written in %s)\n%s", count,
+               input.name().c_str(), describe_seconds(read_seconds).c_str(), output.name().c_str(),
+               describe_seconds(write_seconds).c_str(),
                single_scalar ? total_float.describe().c_str() : total.describe().c_str());
   return ExitStatus::success;
 }

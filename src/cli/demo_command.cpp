@@ -23,8 +23,8 @@ constexpr std::uint64_t default_seed = 1;
 struct DemoOptions {
   std::size_t ellipsoids = default_ellipsoids;
   std::uint64_t seed = default_seed;
-  double packing = 0.3;     // volume of the spheroids over the box's
-  double max_aspect = 3;    // aspect ratios log-uniform in [1 / max, max]
+  double packing = 0.3;           // volume of the spheroids over the box's
+  double max_aspect = 3;          // aspect ratios log-uniform in [1 / max, max]
   bool identical_shapes = false;  // every aspect ratio max_aspect instead
   double cutoff = 1;
   int threads = 0;
@@ -43,7 +43,8 @@ OptionParser demo_parser(DemoOptions& options) {
       "every platform.");
   parser.add_value({"--n"}, "N", std::to_string(default_ellipsoids), "number of spheroids",
                    [&options](std::string_view value) {
-                     options.ellipsoids = std::size_t(parse_integer(value, 1, (std::int64_t(1) << 31) - 1));
+                     options.ellipsoids =
+                         std::size_t(parse_integer(value, 1, (std::int64_t(1) << 31) - 1));
                    });
   parser.add_value({"--seed"}, "S", std::to_string(default_seed), "seed of the scene",
                    [&options](std::string_view value) { options.seed = parse_unsigned(value); });
@@ -92,7 +93,8 @@ ExitStatus run_demo(const Arguments& arguments) {
   {
     ProgressBar bar("generating the scene");
     scene = spheroid_scene(options.ellipsoids, options.seed, options.packing, options.max_aspect,
-                           options.identical_shapes, threads, [&bar](double fraction) { bar.update(fraction); });
+                           options.identical_shapes, threads,
+                           [&bar](double fraction) { bar.update(fraction); });
   }
   const double generate_seconds = generating.seconds();
   const ParticleStore& particles = scene.particles;
@@ -103,11 +105,11 @@ ExitStatus run_demo(const Arguments& arguments) {
   else
     std::snprintf(shapes, sizeof shapes, "aspect ratios 1/%g to %g", options.max_aspect,
                   options.max_aspect);
-  std::printf("pwcontact demo: %zu spheroids (%s, packing fraction %g), "
-              "periodic box %.4g, seed %llu (generated in %s)\n",
-              particles.size(), shapes, options.packing, box,
-              static_cast<unsigned long long>(options.seed),
-              describe_seconds(generate_seconds).c_str());
+  std::printf(
+      "pwcontact demo: %zu spheroids (%s, packing fraction %g), "
+      "periodic box %.4g, seed %llu (generated in %s)\n",
+      particles.size(), shapes, options.packing, box, static_cast<unsigned long long>(options.seed),
+      describe_seconds(generate_seconds).c_str());
   std::fflush(stdout);
 
   ScreenOptions screen_options;

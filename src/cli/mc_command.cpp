@@ -50,10 +50,9 @@ OptionParser mc_parser(McOptions& options) {
       "is rounded into an overlap; types A0 .. A15 with their Ellipsoid shapes) or text "
       "(any other name: 'pwcontact screen --format axes' lines, x y z a b c qw qx qy qz, "
       "with the box in a comment line and the command that reads it back).");
-  parser.add_value({"--n"}, "N", "500", "number of spheroids",
-                   [&options](std::string_view value) {
-                     options.particles = std::size_t(parse_integer(value, 1, 10'000'000));
-                   });
+  parser.add_value({"--n"}, "N", "500", "number of spheroids", [&options](std::string_view value) {
+    options.particles = std::size_t(parse_integer(value, 1, 10'000'000));
+  });
   parser.add_value({"--seed"}, "S", "1", "seed of the lattice's shapes and of the moves",
                    [&options](std::string_view value) { options.seed = parse_unsigned(value); });
   parser.add_value({"--packing"}, "PHI", "0.5",
@@ -85,7 +84,8 @@ bool parse_mc_only(const Arguments& arguments) {
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // The scene as one GSD frame (written to a temporary name, renamed when complete).
@@ -102,8 +102,9 @@ void write_gsd(const HardParticleMC& mc, const std::string& path) {
   for (const auto& [axes, t] : type_of_shape) {
     names[t] = "A" + std::to_string(t);
     char json[160];
-    std::snprintf(json, sizeof json, "{\"type\": \"Ellipsoid\", \"a\": %.17g, \"b\": %.17g, \"c\": %.17g}",
-                  axes[0], axes[1], axes[2]);
+    std::snprintf(json, sizeof json,
+                  "{\"type\": \"Ellipsoid\", \"a\": %.17g, \"b\": %.17g, \"c\": %.17g}", axes[0],
+                  axes[1], axes[2]);
     shapes[t] = json;
   }
   std::vector<double> position(3 * n), orientation(4 * n);
@@ -146,12 +147,13 @@ void write_text(const HardParticleMC& mc, const std::string& path) {
   const Box& box = mc.box();
   OutputFile out(path);
   char line[400];
-  std::snprintf(line, sizeof line,
-                "# pwcontact mc: %zu spheroids, packing fraction %.6f after %zu sweeps, periodic box "
-                "%.17g %.17g %.17g\n# read back: pwcontact screen --format axes --box %.17g %.17g "
-                "%.17g %s\n# x y z a b c qw qx qy qz\n",
-                s.size(), mc.packing(), mc.sweeps(), box.length[0], box.length[1], box.length[2],
-                box.length[0], box.length[1], box.length[2], path.c_str());
+  std::snprintf(
+      line, sizeof line,
+      "# pwcontact mc: %zu spheroids, packing fraction %.6f after %zu sweeps, periodic box "
+      "%.17g %.17g %.17g\n# read back: pwcontact screen --format axes --box %.17g %.17g "
+      "%.17g %s\n# x y z a b c qw qx qy qz\n",
+      s.size(), mc.packing(), mc.sweeps(), box.length[0], box.length[1], box.length[2],
+      box.length[0], box.length[1], box.length[2], path.c_str());
   out.write(line);
   for (std::size_t i = 0; i < s.size(); ++i) {
     const auto& a = mc.semi_axes()[i];
@@ -176,8 +178,8 @@ ExitStatus run_mc(const Arguments& arguments) {
   mc_options.threads = resolve_thread_count(options.threads);
   resolve_instruction_set(Isa::automatic);
   const Stopwatch clock;
-  HardParticleMC mc = HardParticleMC::dilute_spheroids(options.particles, options.seed, 3, mc_options,
-                                                       shape_count);
+  HardParticleMC mc =
+      HardParticleMC::dilute_spheroids(options.particles, options.seed, 3, mc_options, shape_count);
   const double start_packing = mc.packing();
   std::fprintf(stderr, "pwcontact mc: %zu spheroids, packing fraction %.4f -> %g, %d threads\n",
                options.particles, start_packing, options.packing, mc_options.threads);
@@ -185,9 +187,11 @@ ExitStatus run_mc(const Arguments& arguments) {
   {
     ProgressBar bar("compressing");
     try {
-      mc.compress_to_packing(options.sweeps, [&](std::size_t sweeps, double packing, double acceptance) {
+      mc.compress_to_packing(options.sweeps, [&](std::size_t sweeps, double packing,
+                                                 double acceptance) {
         // Progress in the log of the volume, which the compression shrinks.
-        const double fraction = std::log(packing / start_packing) / std::log(options.packing / start_packing);
+        const double fraction =
+            std::log(packing / start_packing) / std::log(options.packing / start_packing);
         char note[120];
         std::snprintf(note, sizeof note, "sweep %zu, packing %.4f, acceptance %.2f, d %.3g, a %.3g",
                       sweeps, packing, acceptance, mc.translation(), mc.rotation());
@@ -203,7 +207,8 @@ ExitStatus run_mc(const Arguments& arguments) {
   }
   const std::size_t overlapping = mc.overlapping_pairs();
   if (overlapping != 0)
-    throw CommandError(ExitStatus::failed, std::to_string(overlapping) + " overlapping pairs at the end");
+    throw CommandError(ExitStatus::failed,
+                       std::to_string(overlapping) + " overlapping pairs at the end");
   std::fprintf(stderr,
                "pwcontact mc: packing fraction %.4f after %zu sweeps in %s, acceptance %.3f, no "
                "overlap (full screen after every sweep)\n",
@@ -222,7 +227,8 @@ ExitStatus run_mc(const Arguments& arguments) {
 }  // namespace
 
 const Subcommand mc_subcommand = {
-    "mc", "hard-ellipsoid Monte Carlo: spheroids compressed to a packing fraction, never overlapping",
+    "mc",
+    "hard-ellipsoid Monte Carlo: spheroids compressed to a packing fraction, never overlapping",
     mc_options_help, run_mc, parse_mc_only};
 
 }  // namespace pwcontact::cli

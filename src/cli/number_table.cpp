@@ -145,8 +145,7 @@ std::vector<Piece> split_into_pieces(std::string_view text, std::size_t count) {
 // numbering lines across blocks.
 class ColumnsParser {
  public:
-  ColumnsParser(const std::string& source, std::size_t column_count, int threads,
-                bool line_numbers)
+  ColumnsParser(const std::string& source, std::size_t column_count, int threads, bool line_numbers)
       : source_(source), threads_(threads), line_numbers_(line_numbers) {
     table_.columns.resize(column_count);
   }
@@ -203,24 +202,26 @@ void ColumnsParser::parse(std::string_view lines) {
   // Second pass: parse each piece straight into its rows of the columns.
   detail::ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads_)
-  for (std::ptrdiff_t i = 0; i < count; ++i) errors.run([&] {
-    Piece& piece = pieces[std::size_t(i)];
-    std::vector<double> row(column_count);
-    std::size_t line = piece.first_line, record = piece.first_record;
-    for_each_line(piece.text, [&](const char* begin, const char* end) {
-      if (piece.error_line == 0 && is_record(begin, end)) {
-        if (std::optional<std::string> error = parse_record(begin, end, row.data(), column_count)) {
-          piece.error_line = line;
-          piece.error = std::move(*error);
-        } else {
-          for (std::size_t k = 0; k < column_count; ++k) table_.columns[k][record] = row[k];
-          if (line_numbers_) table_.line[record] = line;
-          ++record;
+  for (std::ptrdiff_t i = 0; i < count; ++i)
+    errors.run([&] {
+      Piece& piece = pieces[std::size_t(i)];
+      std::vector<double> row(column_count);
+      std::size_t line = piece.first_line, record = piece.first_record;
+      for_each_line(piece.text, [&](const char* begin, const char* end) {
+        if (piece.error_line == 0 && is_record(begin, end)) {
+          if (std::optional<std::string> error =
+                  parse_record(begin, end, row.data(), column_count)) {
+            piece.error_line = line;
+            piece.error = std::move(*error);
+          } else {
+            for (std::size_t k = 0; k < column_count; ++k) table_.columns[k][record] = row[k];
+            if (line_numbers_) table_.line[record] = line;
+            ++record;
+          }
         }
-      }
-      ++line;
+        ++line;
+      });
     });
-  });
   errors.rethrow_if_failed();
 
   // Pieces are in input order: the first one with an error has the first
@@ -280,9 +281,9 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
     if (filled < buffer.size()) continue;
     const void* last_newline = memrchr(buffer.data(), '\n', filled);
     if (!last_newline)
-      throw CommandError(ExitStatus::usage_error,
-                         name_ + ":" + std::to_string(lines_before + 1) + ": line longer than " +
-                             std::to_string(block_bytes >> 20) + " MiB");
+      throw CommandError(ExitStatus::usage_error, name_ + ":" + std::to_string(lines_before + 1) +
+                                                      ": line longer than " +
+                                                      std::to_string(block_bytes >> 20) + " MiB");
     const std::size_t whole =
         std::size_t(static_cast<const char*>(last_newline) - buffer.data()) + 1;
     const std::string_view lines(buffer.data(), whole);

@@ -150,7 +150,7 @@ ExitStatus run_pairs(const Arguments& arguments) {
 }  // namespace
 
 const Subcommand pairs_subcommand = {"pairs",
-                                    "random pairs through the batch path: throughput and accuracy",
-                                    pairs_options_help, run_pairs, parse_pairs_only};
+                                     "random pairs through the batch path: throughput and accuracy",
+                                     pairs_options_help, run_pairs, parse_pairs_only};
 
 }  // namespace pwcontact::cli

@@ -35,7 +35,9 @@ const char* format_name(SceneFormat f) noexcept {
   }
   return "?";
 }
-bool is_text(SceneFormat f) { return f == SceneFormat::q || f == SceneFormat::axes || f == SceneFormat::ellipse; }
+bool is_text(SceneFormat f) {
+  return f == SceneFormat::q || f == SceneFormat::axes || f == SceneFormat::ellipse;
+}
 std::size_t numbers_per_particle(SceneFormat f) {
   return f == SceneFormat::q ? 9 : f == SceneFormat::axes ? 10 : 5;
 }
@@ -85,19 +87,20 @@ std::vector<double> parse_box_numbers(std::string_view text) {
 
 // "--columns x=xu,shapex=c_s[1],...": the dump's column of each quantity.
 LammpsColumns parse_columns(std::string_view text) {
-  static const char* const names[10] = {"x", "y", "z", "shapex", "shapey", "shapez",
-                                        "quatw", "quati", "quatj", "quatk"};
+  static const char* const names[10] = {"x",      "y",     "z",     "shapex", "shapey",
+                                        "shapez", "quatw", "quati", "quatj",  "quatk"};
   LammpsColumns columns;
-  std::string* targets[10] = {&columns.position[0], &columns.position[1], &columns.position[2],
-                              &columns.shape[0],    &columns.shape[1],    &columns.shape[2],
-                              &columns.quaternion[0], &columns.quaternion[1],
-                              &columns.quaternion[2], &columns.quaternion[3]};
+  std::string* targets[10] = {
+      &columns.position[0],   &columns.position[1],  &columns.position[2],   &columns.shape[0],
+      &columns.shape[1],      &columns.shape[2],     &columns.quaternion[0], &columns.quaternion[1],
+      &columns.quaternion[2], &columns.quaternion[3]};
   while (!text.empty()) {
     const std::size_t comma = text.find(',');
     const std::string_view item = text.substr(0, comma);
     const std::size_t equals = item.find('=');
     std::string_view name = item.substr(0, equals);
-    const std::string_view column = equals == std::string_view::npos ? std::string_view() : item.substr(equals + 1);
+    const std::string_view column =
+        equals == std::string_view::npos ? std::string_view() : item.substr(equals + 1);
     int k = 0;
     while (k < 10 && name != names[k]) ++k;
     if (k == 10 || column.empty())
@@ -126,7 +129,8 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
       "as the ellipsoid a, b, min(a, b) in the z = 0 plane). Blank lines and lines "
       "starting with '#' are skipped. Simulation files: gsd: HOOMD-blue's GSD (the frame's "
       "particles/position, orientation, typeid, types and type_shapes, Ellipsoid a b c, "
-      "Sphere diameter or, in 2D, Ellipsoid or Ellipse a b; configuration/box and dimensions, 2 for ellipses; absent chunks "
+      "Sphere diameter or, in 2D, Ellipsoid or Ellipse a b; configuration/box and dimensions, 2 "
+      "for ellipses; absent chunks "
       "as the schema defines them, from frame 0); lammps-data: a LAMMPS data file of "
       "atom_style ellipsoid (the Ellipsoids section's shapes are diameters); lammps-dump: "
       "a LAMMPS text dump (dump custom) with positions, shapes (diameters) and "
@@ -163,18 +167,20 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                    [&options](std::string_view value) { options.box = parse_box_numbers(value); });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
-  const Choices<SceneFormat> formats{{SceneFormat::q, SceneFormat::axes, SceneFormat::ellipse,
-                                      SceneFormat::gsd, SceneFormat::lammps_data,
-                                      SceneFormat::lammps_dump},
-                                     format_name};
-  parser.add_value({"--format"}, formats.names("|", "|"), "from FILE's name",
-                   "how FILE gives the particles (see Input)",
-                   [&options, formats](std::string_view text) { options.format = formats.parse(text); });
+  const Choices<SceneFormat> formats{
+      {SceneFormat::q, SceneFormat::axes, SceneFormat::ellipse, SceneFormat::gsd,
+       SceneFormat::lammps_data, SceneFormat::lammps_dump},
+      format_name};
+  parser.add_value(
+      {"--format"}, formats.names("|", "|"), "from FILE's name",
+      "how FILE gives the particles (see Input)",
+      [&options, formats](std::string_view text) { options.format = formats.parse(text); });
   parser.add_value({"--frame"}, "N", "-1, the last",
                    "the frame of a GSD file or LAMMPS dump to screen (0-based; negative "
                    "counts from the end)",
                    [&options](std::string_view text) {
-                     options.frame = parse_integer(text, -(std::int64_t(1) << 62), std::int64_t(1) << 62);
+                     options.frame =
+                         parse_integer(text, -(std::int64_t(1) << 62), std::int64_t(1) << 62);
                    });
   parser.add_value({"--columns"}, "NAME=COLUMN,...", "the usual names",
                    "for a LAMMPS dump: the columns of the ITEM: ATOMS line that hold x y z "
@@ -182,8 +188,8 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                    "shapex=c_s[1],shapey=c_s[2],shapez=c_s[3] (the rest by their usual names)",
                    [&options](std::string_view text) { options.columns = parse_columns(text); });
   add_choice(parser, "--outputs",
-             Choices<ScreenOutput>{{ScreenOutput::pairs, ScreenOutput::counts, ScreenOutput::neighbors},
-                                   output_name},
+             Choices<ScreenOutput>{
+                 {ScreenOutput::pairs, ScreenOutput::counts, ScreenOutput::neighbors}, output_name},
              options.outputs, "what is written (see Output)");
   parser.add_flag({"--with-mu2"},
                   "also write mu^2 of every pair found (the inscribed spheres then decide "
@@ -226,7 +232,8 @@ Arguments take_box(const Arguments& arguments, ScreenCommandOptions& options,
     }
     options.box.clear();
     double value = 0;
-    while (k + 1 < arguments.size() && options.box.size() < 6 && parse_finite(arguments[k + 1], value)) {
+    while (k + 1 < arguments.size() && options.box.size() < 6 &&
+           parse_finite(arguments[k + 1], value)) {
       options.box.push_back(value);
       ++k;
     }
@@ -239,7 +246,8 @@ Arguments take_box(const Arguments& arguments, ScreenCommandOptions& options,
 // The format FILE's name implies: .gsd, .data, .dump or .lammpstrj, else q.
 SceneFormat format_from_name(const std::string& path) {
   auto ends_with = [&](std::string_view suffix) {
-    return path.size() >= suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0;
+    return path.size() >= suffix.size() &&
+           path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0;
   };
   if (ends_with(".gsd")) return SceneFormat::gsd;
   if (ends_with(".data")) return SceneFormat::lammps_data;
@@ -256,8 +264,9 @@ Box box_of(const ScreenCommandOptions& options, SceneFormat format, const Option
   const bool ellipses = format == SceneFormat::ellipse;
   const std::size_t lengths = ellipses ? 2 : 3;
   if (!(b.size() == lengths || b.size() == 2 * lengths - (ellipses ? 1 : 0)))
-    parser.fail(std::string("option --box: ") + std::to_string(b.size()) + " numbers; " +
-                (ellipses ? "ellipses take LX LY or LX LY XY" : "expected LX LY LZ or LX LY LZ XY XZ YZ"));
+    parser.fail(
+        std::string("option --box: ") + std::to_string(b.size()) + " numbers; " +
+        (ellipses ? "ellipses take LX LY or LX LY XY" : "expected LX LY LZ or LX LY LZ XY XZ YZ"));
   try {
     if (ellipses) return Box::two_dimensional_box(b[0], b[1], b.size() == 3 ? b[2] : 0);
     return b.size() == 3 ? Box::periodic_box(b[0], b[1], b[2])
@@ -306,7 +315,8 @@ ParticleStore read_particles(const std::string& path, SceneFormat format, int th
         }
         if (bad < n)
           throw CommandError(ExitStatus::usage_error,
-                             source + ": " + (format == SceneFormat::ellipse ? "ellipse " : "ellipsoid ") +
+                             source + ": " +
+                                 (format == SceneFormat::ellipse ? "ellipse " : "ellipsoid ") +
                                  std::to_string(first + bad) + " (line " +
                                  std::to_string(block.line[bad]) + "): " + message);
       });
@@ -328,13 +338,16 @@ bool parse_screen(const Arguments& arguments, ScreenCommand& command) {
   if (!parser.parse(rest)) return false;
   command.format = options.format ? *options.format : format_from_name(options.input);
   command.box = box_of(options, command.format, parser);
-  if (options.frame && command.format != SceneFormat::gsd && command.format != SceneFormat::lammps_dump)
+  if (options.frame && command.format != SceneFormat::gsd &&
+      command.format != SceneFormat::lammps_dump)
     parser.fail(std::string("option --frame: a ") + format_name(command.format) +
                 " input has one frame (--frame is for gsd and lammps-dump)");
   if (options.columns && command.format != SceneFormat::lammps_dump)
-    parser.fail(std::string("option --columns: for a lammps-dump input, not ") + format_name(command.format));
+    parser.fail(std::string("option --columns: for a lammps-dump input, not ") +
+                format_name(command.format));
   if (!options.gsd_output.empty() && command.format != SceneFormat::gsd)
-    parser.fail(std::string("option --write-gsd: for a gsd input, not ") + format_name(command.format));
+    parser.fail(std::string("option --write-gsd: for a gsd input, not ") +
+                format_name(command.format));
   if (!is_text(command.format) && options.input == "-")
     parser.fail(std::string("a ") + format_name(command.format) +
                 " input is read from a file, not standard input: give FILE");
@@ -366,9 +379,13 @@ LoadedScene load_scene(const ScreenCommand& command, int threads) {
   omp_set_num_threads(threads);  // the readers' parallel loops
   try {
     const std::int64_t frame = options.frame ? *options.frame : -1;
-    if (command.format == SceneFormat::gsd) scene = read_gsd(options.input, frame);
-    else if (command.format == SceneFormat::lammps_data) scene = read_lammps_data(options.input);
-    else scene = read_lammps_dump(options.input, frame, options.columns ? *options.columns : LammpsColumns{});
+    if (command.format == SceneFormat::gsd)
+      scene = read_gsd(options.input, frame);
+    else if (command.format == SceneFormat::lammps_data)
+      scene = read_lammps_data(options.input);
+    else
+      scene = read_lammps_dump(options.input, frame,
+                               options.columns ? *options.columns : LammpsColumns{});
   } catch (const std::invalid_argument& e) {
     throw CommandError(ExitStatus::usage_error, e.what());
   } catch (const std::runtime_error& e) {
@@ -379,14 +396,15 @@ LoadedScene load_scene(const ScreenCommand& command, int threads) {
   loaded.box = scene.box;
   loaded.source = options.input + " (" + format_name(command.format);
   if (scene.frames > 1 || command.format != SceneFormat::lammps_data)
-    loaded.source += ", frame " + std::to_string(scene.frame) + " of " + std::to_string(scene.frames);
+    loaded.source +=
+        ", frame " + std::to_string(scene.frame) + " of " + std::to_string(scene.frames);
   loaded.source += ")";
   return loaded;
 }
 
 // The output lines of `outputs`, formatted in parallel, in order.
-void write_output(OutputFile& output, ScreenOutput outputs, bool with_mu2, const ScreenedPairs& pairs,
-                  std::size_t particles, int threads) {
+void write_output(OutputFile& output, ScreenOutput outputs, bool with_mu2,
+                  const ScreenedPairs& pairs, std::size_t particles, int threads) {
   if (outputs == ScreenOutput::pairs) {
     write_lines_in_order(output, pairs.size(), threads, [&](std::string& text, std::size_t k) {
       char line[2 * 12 + max_number_chars + 4];
@@ -474,15 +492,19 @@ ExitStatus run_screen(const Arguments& arguments) {
     gsd_output->commit();
   }
   output.commit();
-  std::fprintf(stderr, "pwcontact screen: %zu %s from %s (read in %s), %zu pairs, %s to %s "
+  std::fprintf(stderr,
+               "pwcontact screen: %zu %s from %s (read in %s), %zu pairs, %s to %s "
                "(written in %s)\n%s",
-               scene.particles.size(), scene.box.two_dimensional || command.format == SceneFormat::ellipse ? "ellipses" : "ellipsoids",
+               scene.particles.size(),
+               scene.box.two_dimensional || command.format == SceneFormat::ellipse ? "ellipses"
+                                                                                   : "ellipsoids",
                scene.source.c_str(), describe_seconds(read_seconds).c_str(), pairs.size(),
                output_name(options.outputs), output.name().c_str(),
                describe_seconds(writing.seconds()).c_str(),
                describe_screen(report, scene.box, options.cutoff).c_str());
   if (gsd_output)
-    std::fprintf(stderr, "  the frame with log/particles/overlaps to %s\n", gsd_output->name().c_str());
+    std::fprintf(stderr, "  the frame with log/particles/overlaps to %s\n",
+                 gsd_output->name().c_str());
   return ExitStatus::success;
 }
 

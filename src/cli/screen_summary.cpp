@@ -31,7 +31,8 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
                   box.length[0], box.length[1], box.tilt[0]);
   else if (box.periodic && !box.orthorhombic())
     std::snprintf(where, sizeof where, "periodic box %g x %g x %g, tilts xy %g xz %g yz %g",
-                  box.length[0], box.length[1], box.length[2], box.tilt[0], box.tilt[1], box.tilt[2]);
+                  box.length[0], box.length[1], box.length[2], box.tilt[0], box.tilt[1],
+                  box.tilt[2]);
   else if (box.periodic)
     std::snprintf(where, sizeof where, "periodic box %g x %g x %g", box.length[0], box.length[1],
                   box.length[2]);
@@ -54,8 +55,8 @@ std::string describe_screen(const ScreenReport& r, const Box& box, double cutoff
       r.one_type           ? " (identical shapes, one type: one reach for every pair)"
       : r.identical_shapes ? " (identical shapes: one reach for every pair)"
                            : "",
-      r.candidate_pairs, r.decided_out, r.decided_out_by_projection, r.decided_in, r.decided_spheres, r.decided_same_form,
-      r.solved,
+      r.candidate_pairs, r.decided_out, r.decided_out_by_projection, r.decided_in,
+      r.decided_spheres, r.decided_same_form, r.solved,
       r.solved ? precision_name(r.batch.precision) : "-", r.solved ? isa_name(r.batch.isa) : "-",
       r.batch.mean_evaluations, r.batch.fallbacks, r.invalid, r.found, cutoff,
       describe_seconds(r.seconds_cells).c_str(), describe_seconds(r.seconds_candidates).c_str(),

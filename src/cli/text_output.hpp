@@ -72,7 +72,7 @@ class OutputFile {
   bool owns_file_ = false;  // false for standard output
   int error_ = 0;           // errno of the first failed write
   bool committed_ = false;
-  int pending_slot_ = -1;   // registered for removal on a signal
+  int pending_slot_ = -1;  // registered for removal on a signal
 };
 
 // Writes the lines produced by format_line(std::string& text, std::size_t i)
@@ -137,7 +137,6 @@ class ProgressBar {
   bool shown_, drawn_ = false;
   Stopwatch clock_;
 };
-
 
 // "0.52 s", "12.3 ms", "45 us".
 std::string describe_seconds(double seconds);

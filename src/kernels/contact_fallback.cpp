@@ -21,8 +21,8 @@ void leave_every_lane(Status* status, std::size_t n) {
 }
 
 template <class In, class Out>
-void solve_full(const PairSpan<In>&, const ResultSpan<Out>& out, std::size_t n, const ChunkSettings&,
-                const Scratch&, ChunkCounters&) {
+void solve_full(const PairSpan<In>&, const ResultSpan<Out>& out, std::size_t n,
+                const ChunkSettings&, const Scratch&, ChunkCounters&) {
   leave_every_lane(out.status, n);
 }
 

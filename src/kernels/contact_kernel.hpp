@@ -108,12 +108,14 @@ __attribute__((noinline)) void write_geometry(const ResultSpan<Out> out, const L
                                               const GeometryLanes<xsimd::batch<T, Arch>> g,
                                               unsigned outputs) {
   switch (outputs & geometry_outputs) {
+// clang-format off
 #define PWCONTACT_GEOMETRY_CASE(bits) \
   case bits: write_geometry<bits, Arch, T, Out>(out, at, g); break;
     PWCONTACT_GEOMETRY_CASE(2) PWCONTACT_GEOMETRY_CASE(4) PWCONTACT_GEOMETRY_CASE(6)
     PWCONTACT_GEOMETRY_CASE(8) PWCONTACT_GEOMETRY_CASE(10) PWCONTACT_GEOMETRY_CASE(12)
     PWCONTACT_GEOMETRY_CASE(14)
 #undef PWCONTACT_GEOMETRY_CASE
+    // clang-format on
   }
 }
 
@@ -220,10 +222,10 @@ struct Convergence {
 };
 
 template <class T, class B>
-PWCONTACT_INLINE Convergence<B> convergence_test(const Evaluation<B>& e, const B& lo, const B& hi,
-                                                 const typename B::batch_bool_type& newton_in_bracket,
-                                                 bool newton_formulation, bool lambda_asked,
-                                                 const B& gain_tolerance) {
+PWCONTACT_INLINE Convergence<B> convergence_test(
+    const Evaluation<B>& e, const B& lo, const B& hi,
+    const typename B::batch_bool_type& newton_in_bracket, bool newton_formulation,
+    bool lambda_asked, const B& gain_tolerance) {
   using M = typename B::batch_bool_type;
   const B step = e.g / e.dg;
   const B newton_lambda = e.lambda - step;
@@ -250,9 +252,9 @@ class FullBlock : public LaneGroups<Arch, T> {
       Base::settings_;
 
  public:
+  using Base::size, Base::U, Base::W;
   using typename Base::B;
   using typename Base::M;
-  using Base::size, Base::U, Base::W;
 
   FullBlock(const ChunkSettings& settings, ChunkCounters& counters, FullKept<T>& kept)
       : Base(settings, counters),
@@ -264,7 +266,8 @@ class FullBlock : public LaneGroups<Arch, T> {
   // position `position` of the chunk (they differ for a padded tail), `real`
   // pairs in it: checks, nondimensionalises, and starts from the radial guess.
   template <class In>
-  PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position, std::size_t real) {
+  PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position,
+                              std::size_t real) {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
@@ -314,8 +317,8 @@ class FullBlock : public LaneGroups<Arch, T> {
   // The double block of a mixed-precision solve: starts from the lambda the
   // float lanes reached (lambda_start, one per lane of the block; NaN where
   // they failed), with the bracket [0, 1].
-  PWCONTACT_INLINE void start_from(const PairSpan<T>& in, std::size_t from, std::size_t position, std::size_t real,
-                  const T* lambda_start) {
+  PWCONTACT_INLINE void start_from(const PairSpan<T>& in, std::size_t from, std::size_t position,
+                                   std::size_t real, const T* lambda_start) {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const B start = B::load_unaligned(lambda_start + std::size_t(u) * W);
@@ -325,8 +328,8 @@ class FullBlock : public LaneGroups<Arch, T> {
       live_[u] = this->usable(u) & in_range<T>(pair_[u]) &
                  Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
                  Adjugate<B>(pair_[u].q2).positive_definite(pair_[u].q2);
-      coincident_[u] = live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) &
-                       (pair_[u].r[2] == B(0));
+      coincident_[u] =
+          live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) & (pair_[u].r[2] == B(0));
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
   }
@@ -375,9 +378,9 @@ class FullBlock : public LaneGroups<Arch, T> {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
       const M newton = this->advance(e, u);
-      const Convergence<B> test =
-          convergence_test<T>(e, lo_[u], hi_[u], newton, settings_.formulation == Formulation::newton,
-                              settings_.outputs != 0, gain_tolerance_);
+      const Convergence<B> test = convergence_test<T>(e, lo_[u], hi_[u], newton,
+                                                      settings_.formulation == Formulation::newton,
+                                                      settings_.outputs != 0, gain_tolerance_);
       const M corrected = test.corrected;
       const B gain = test.gain, newton_lambda = test.newton_lambda;
       M done = test.corrected | test.bounded;
@@ -442,7 +445,8 @@ class FullBlock : public LaneGroups<Arch, T> {
       const bool many = count_lanes<Arch, T>(unfinished) * 4 > W;
       if (many) keep_registers(u, unfinished);
       const B nan(std::numeric_limits<T>::quiet_NaN());
-      write_lanes<Arch, T, T>(state.lambda, at_[u], many ? nan : xsimd::select(unfinished, lambda_[u], nan));
+      write_lanes<Arch, T, T>(state.lambda, at_[u],
+                              many ? nan : xsimd::select(unfinished, lambda_[u], nan));
       write_lanes<Arch, T, T>(state.lo, at_[u], lo_[u]);
       write_lanes<Arch, T, T>(state.hi, at_[u], hi_[u]);
     } else if (handoff == Handoff::adaptive) {
@@ -586,15 +590,17 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
   // answer: one step and the check (lanes that fail it go on in the later
   // passes, one evaluation each).
   const bool warm = std::is_same<T, In>::value && in.lambda_start != nullptr;
-  const int first = automatic ? (warm ? 2 : first_pass_evaluations<T>(settings))
-                              : settings.iterations;
-  const Handoff handoff = automatic && first < settings.max_iterations ? Handoff::adaptive
-                                                                       : Handoff::none;
+  const int first =
+      automatic ? (warm ? 2 : first_pass_evaluations<T>(settings)) : settings.iterations;
+  const Handoff handoff =
+      automatic && first < settings.max_iterations ? Handoff::adaptive : Handoff::none;
   for_each_block<Arch, FullBlock<Arch, T>::size>(
-      in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+      in, n,
+      [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
         first_pass_block<Arch, T, In, Out>(span, from, position, real, first, handoff, state, out,
                                            settings, counters, kept);
-      }, 4);
+      },
+      4);
   if (handoff == Handoff::adaptive) {
     pack_unfinished<Arch>(in, n, out.status, state, kept);
     later_passes<Arch, T>(kept, out, first, settings, counters);
@@ -604,7 +610,8 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
 // Mixed precision (see mixed_block): the answer has double accuracy.
 template <class Arch>
 void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out, std::size_t n,
-                      const ChunkSettings& settings, const Scratch& scratch, ChunkCounters& counters) {
+                      const ChunkSettings& settings, const Scratch& scratch,
+                      ChunkCounters& counters) {
   FullKept<double> kept(scratch);
   FullKept<float> never_kept(scratch);
   const StateByPosition<double> state = state_by_position<double>(scratch);
@@ -614,10 +621,12 @@ void solve_full_mixed(const PairSpan<double>& in, const ResultSpan<double>& out,
                               ? Handoff::adaptive
                               : Handoff::none;
   for_each_block<Arch, FullBlock<Arch, float>::size>(
-      in, n, [&](const PairSpan<double>& span, std::size_t from, std::size_t position, std::size_t real) {
+      in, n,
+      [&](const PairSpan<double>& span, std::size_t from, std::size_t position, std::size_t real) {
         mixed_block<Arch>(span, from, position, real, float_steps, handoff, state, out, settings,
                           counters, kept, never_kept);
-      }, 1);
+      },
+      1);
   if (handoff == Handoff::adaptive) {
     pack_unfinished<Arch>(in, n, out.status, state, kept);
     later_passes<Arch, double>(kept, out, mixed_double_evaluations, settings, counters);

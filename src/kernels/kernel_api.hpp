@@ -60,12 +60,12 @@ inline constexpr Status needs_fallback = static_cast<Status>(0xFF);
 
 // How a chunk is solved; everything resolved by the driver (no "automatic").
 struct ChunkSettings {
-  int iterations;          // fixed count, or 0 for automatic
-  int max_iterations;      // automatic: cap on evaluations per lane
+  int iterations;           // fixed count, or 0 for automatic
+  int max_iterations;       // automatic: cap on evaluations per lane
   Formulation formulation;  // newton or log_odds
   Accuracy accuracy;
-  unsigned outputs;        // OutputBits (full answer)
-  double cutoff_mu2;       // overlap: the threshold on mu^2
+  unsigned outputs;   // OutputBits (full answer)
+  double cutoff_mu2;  // overlap: the threshold on mu^2
 };
 
 // What a chunk's kernels did, summed by the driver.
@@ -103,12 +103,12 @@ struct KernelTable {
   const char* name;
   int lanes_double;
   int lanes_float;
-  FullKernel<double, double> full_double;        // double arithmetic
-  FullKernel<double, double> full_mixed;         // float iterations, double finish
-  FullKernel<double, double> full_single;        // float arithmetic on double pairs
-  FullKernel<float, float> full_float;           // float arithmetic on float pairs
+  FullKernel<double, double> full_double;  // double arithmetic
+  FullKernel<double, double> full_mixed;   // float iterations, double finish
+  FullKernel<double, double> full_single;  // float arithmetic on double pairs
+  FullKernel<float, float> full_float;     // float arithmetic on float pairs
   OverlapKernel<double> overlap_double;
-  OverlapKernel<double> overlap_mixed;           // float certificates, double for the rest
+  OverlapKernel<double> overlap_mixed;  // float certificates, double for the rest
   OverlapKernel<double> overlap_single;
   OverlapKernel<float> overlap_float;
 };

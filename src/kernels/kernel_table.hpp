@@ -6,19 +6,19 @@
 #include "kernels/contact_kernel.hpp"
 #include "kernels/overlap_kernel.hpp"
 
-#define PWCONTACT_DEFINE_KERNEL_TABLE(table, arch, label)                                   \
-  namespace pwcontact::kernels {                                                           \
-  const KernelTable kernel_table_##table = {                                              \
-      label,                                                                               \
-      int(xsimd::batch<double, arch>::size),                                               \
-      int(xsimd::batch<float, arch>::size),                                                \
-      &PWCONTACT_TARGET::solve_full<arch, double, double, double>,                                           \
-      &PWCONTACT_TARGET::solve_full_mixed<arch>,                                                             \
-      &PWCONTACT_TARGET::solve_full<arch, float, double, double>,                                            \
-      &PWCONTACT_TARGET::solve_full<arch, float, float, float>,                                              \
-      &PWCONTACT_TARGET::solve_overlap<arch, double, double>,                                                \
-      &PWCONTACT_TARGET::solve_overlap_mixed<arch>,                                                          \
-      &PWCONTACT_TARGET::solve_overlap<arch, float, double>,                                                 \
-      &PWCONTACT_TARGET::solve_overlap<arch, float, float>,                                                  \
-  };                                                                                       \
+#define PWCONTACT_DEFINE_KERNEL_TABLE(table, arch, label)          \
+  namespace pwcontact::kernels {                                   \
+  const KernelTable kernel_table_##table = {                       \
+      label,                                                       \
+      int(xsimd::batch<double, arch>::size),                       \
+      int(xsimd::batch<float, arch>::size),                        \
+      &PWCONTACT_TARGET::solve_full<arch, double, double, double>, \
+      &PWCONTACT_TARGET::solve_full_mixed<arch>,                   \
+      &PWCONTACT_TARGET::solve_full<arch, float, double, double>,  \
+      &PWCONTACT_TARGET::solve_full<arch, float, float, float>,    \
+      &PWCONTACT_TARGET::solve_overlap<arch, double, double>,      \
+      &PWCONTACT_TARGET::solve_overlap_mixed<arch>,                \
+      &PWCONTACT_TARGET::solve_overlap<arch, float, double>,       \
+      &PWCONTACT_TARGET::solve_overlap<arch, float, float>,        \
+  };                                                               \
   }

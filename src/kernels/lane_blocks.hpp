@@ -114,7 +114,8 @@ PWCONTACT_INLINE const T* component(const PairSpan<T>& in, int k) {
 // them lane by lane on the stack, which stalls the load (store forwarding
 // cannot combine many small stores into one wide load).
 template <class T>
-alignas(64) inline constexpr T lane_numbers[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+alignas(64) inline constexpr T lane_numbers[16] = {0, 1, 2,  3,  4,  5,  6,  7,
+                                                   8, 9, 10, 11, 12, 13, 14, 15};
 
 // Numbers from one pair to the next in component k's array.
 template <class T>
@@ -184,7 +185,8 @@ struct KeptLanes {
   std::size_t count = 0;
 
   PWCONTACT_INLINE explicit KeptLanes(const Scratch& scratch) {
-    for (int k = 0; k < arrays; ++k) values[k] = scratch_array<T, footprint>(scratch, std::size_t(k));
+    for (int k = 0; k < arrays; ++k)
+      values[k] = scratch_array<T, footprint>(scratch, std::size_t(k));
     index = reinterpret_cast<std::uint32_t*>(scratch_array<T, footprint>(scratch, arrays));
   }
 };
@@ -318,9 +320,9 @@ PWCONTACT_INLINE void load_rows_avx512(const double* first, __m512d* out) {
     __m512d v = _mm512_permutex2var_pd(r[0], _mm512_load_si512(t.index[c][0]), r[1]);
     for (int j = 1; j < RowShuffles<G>::pairs; ++j)
       if (t.from[c][j])
-        v = _mm512_mask_blend_pd(__mmask8(t.from[c][j]), v,
-                                 _mm512_permutex2var_pd(r[2 * j], _mm512_load_si512(t.index[c][j]),
-                                                        r[2 * j + 1]));
+        v = _mm512_mask_blend_pd(
+            __mmask8(t.from[c][j]), v,
+            _mm512_permutex2var_pd(r[2 * j], _mm512_load_si512(t.index[c][j]), r[2 * j + 1]));
     out[c] = v;
   }
 }
@@ -355,8 +357,9 @@ PWCONTACT_INLINE void load_all(const PairSpan<T>& in, std::size_t i, PairLanes<B
 // registers per float register); nondimensionalises in the input's type,
 // before any narrowing, so that extreme scales survive it.
 template <class Arch, class T, class In>
-PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i, PairLanes<xsimd::batch<T, Arch>>& p,
-                       xsimd::batch<T, Arch>& scale) {
+PWCONTACT_INLINE void load_pairs(const PairSpan<In>& in, std::size_t i,
+                                 PairLanes<xsimd::batch<T, Arch>>& p,
+                                 xsimd::batch<T, Arch>& scale) {
   if constexpr (std::is_same<T, In>::value) {
     load_all(in, i, p);
     scale = nondimensionalise(p);
@@ -392,10 +395,14 @@ struct PaddedTail {
 
   PaddedTail(const PairSpan<In>& in, std::size_t first, std::size_t rest) {
     for (int k = 0; k < pair_components; ++k) {
-      for (std::size_t l = 0; l < Block; ++l) buffer[k][l] = element(in, k, first + (l < rest ? l : 0));
-      if (k < 3) span.r12[k] = buffer[k];
-      else if (k < 9) span.q1[k - 3] = buffer[k];
-      else span.q2[k - 9] = buffer[k];
+      for (std::size_t l = 0; l < Block; ++l)
+        buffer[k][l] = element(in, k, first + (l < rest ? l : 0));
+      if (k < 3)
+        span.r12[k] = buffer[k];
+      else if (k < 9)
+        span.q1[k - 3] = buffer[k];
+      else
+        span.q2[k - 9] = buffer[k];
     }
     if (in.lambda_start) {
       for (std::size_t l = 0; l < Block; ++l)
@@ -405,7 +412,6 @@ struct PaddedTail {
   }
 };
 
-
 // Where the lanes of one group go in the outputs: W consecutive positions
 // from `base`, or the positions listed in `index`; `real` of them (the rest
 // is padding).
@@ -414,7 +420,9 @@ struct LanePositions {
   const std::uint32_t* index;  // null: consecutive
   std::size_t real;
 
-  PWCONTACT_INLINE std::size_t operator[](std::size_t l) const { return index ? index[l] : base + l; }
+  PWCONTACT_INLINE std::size_t operator[](std::size_t l) const {
+    return index ? index[l] : base + l;
+  }
 };
 
 // Appends the lanes of one group selected by `keep` to the kept lanes, given
@@ -425,7 +433,7 @@ struct LanePositions {
 // instruction sets copy lane by lane.
 template <class Arch, class T, int State>
 PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_bool<T, Arch>& keep,
-                       const xsimd::batch<T, Arch>* values, const LanePositions& at) {
+                                 const xsimd::batch<T, Arch>* values, const LanePositions& at) {
   using B = xsimd::batch<T, Arch>;
   constexpr std::size_t W = B::size;
   constexpr int arrays = KeptLanes<T, State>::arrays;
@@ -444,16 +452,16 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
     // Positions: consecutive from a base, or listed; only kept lanes are
     // real, so reading a full register of listed positions stays in the array.
     if constexpr (std::is_same<T, double>::value) {
-      const __m256i idx =
-          at.index ? _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at.index))
-                   : _mm256_add_epi32(_mm256_set1_epi32(int(at.base)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+      const __m256i idx = at.index ? _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at.index))
+                                   : _mm256_add_epi32(_mm256_set1_epi32(int(at.base)),
+                                                      _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(kept.index + first),
                           _mm256_maskz_compress_epi32(mask, idx));
     } else {
-      const __m512i idx =
-          at.index ? _mm512_loadu_si512(at.index)
-                   : _mm512_add_epi32(_mm512_set1_epi32(int(at.base)),
-                                      _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15));
+      const __m512i idx = at.index ? _mm512_loadu_si512(at.index)
+                                   : _mm512_add_epi32(_mm512_set1_epi32(int(at.base)),
+                                                      _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8,
+                                                                        9, 10, 11, 12, 13, 14, 15));
       _mm512_storeu_si512(kept.index + first, _mm512_maskz_compress_epi32(mask, idx));
     }
     kept.count += std::size_t(__builtin_popcount(unsigned(mask)));
@@ -475,7 +483,8 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
 
 // Writes one register of T lanes to an array of Out at their positions.
 template <class Arch, class T, class Out>
-PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at, const xsimd::batch<T, Arch>& v) {
+PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at,
+                                  const xsimd::batch<T, Arch>& v) {
   using B = xsimd::batch<T, Arch>;
   constexpr std::size_t W = B::size;
   if (!at.index && at.real == W) {
@@ -493,7 +502,6 @@ PWCONTACT_INLINE void write_lanes(Out* target, const LanePositions& at, const xs
   v.store_aligned(lanes);
   for (std::size_t l = 0; l < at.real; ++l) target[at[l]] = Out(lanes[l]);
 }
-
 
 // Writes one byte for each lane in `which`: `yes` where `flag`, `no` elsewhere.
 template <class Arch, class T>
@@ -563,7 +571,8 @@ PWCONTACT_INLINE void prefetch_pairs(const PairSpan<In>& in, std::size_t i, std:
     const In* a = component(in, groups[g][0]) + std::ptrdiff_t(i) * stride;
     const In* b = component(in, groups[g][0]) + std::ptrdiff_t(end - 1) * stride;
     const char* low = reinterpret_cast<const char*>(a < b ? a : b);
-    const char* high = reinterpret_cast<const char*>((a < b ? b : a) + (groups[g][1] - groups[g][0]));
+    const char* high =
+        reinterpret_cast<const char*>((a < b ? b : a) + (groups[g][1] - groups[g][0]));
     if (stride > 15 || stride < -15) {  // rows far apart: a prefetch per row (the group's numbers)
       for (std::size_t j = i; j < end; ++j)
         __builtin_prefetch(component(in, groups[g][0]) + std::ptrdiff_t(j) * stride);
@@ -620,7 +629,7 @@ class LaneGroups {
   // Loads group u from the caller's arrays (see start() of the blocks).
   template <class In>
   PWCONTACT_INLINE void load(const PairSpan<In>& in, std::size_t from, std::size_t position,
-            const std::uint32_t* index, std::size_t real, int u) {
+                             const std::uint32_t* index, std::size_t real, int u) {
     const std::size_t offset = std::size_t(u) * W;
     load_pairs<Arch, T, In>(in, from + offset, pair_[u], scale_[u]);
     at_[u] = {position + offset, index ? index + offset : nullptr, lanes_in_group(real, u)};
@@ -647,7 +656,8 @@ class LaneGroups {
   PWCONTACT_INLINE M advance(const Evaluation<B>& e, int u) {
     hi_[u] = xsimd::select(e.g > B(0), e.lambda, hi_[u]);
     lo_[u] = xsimd::select(e.g < B(0), e.lambda, lo_[u]);
-    const B next = settings_.formulation == Formulation::log_odds ? log_odds_step(e) : newton_step(e);
+    const B next =
+        settings_.formulation == Formulation::log_odds ? log_odds_step(e) : newton_step(e);
     const M newton = (lo_[u] <= next) & (next <= hi_[u]);
     lambda_[u] = xsimd::select(newton, next, (lo_[u] + hi_[u]) * B(0.5));
     return newton;

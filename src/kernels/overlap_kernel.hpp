@@ -71,9 +71,9 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       Base::counters_;
 
  public:
+  using Base::size, Base::U, Base::W;
   using typename Base::B;
   using typename Base::M;
-  using Base::size, Base::U, Base::W;
 
   OverlapBlock(const ChunkSettings& settings, ChunkCounters& counters, OverlapKept<T>& kept)
       : Base(settings, counters), kept_(kept), cutoff_(T(settings.cutoff_mu2)) {}
@@ -83,7 +83,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   // and decides what the extents along r12 decide.
   template <class In>
   PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position,
-             const std::uint32_t* index, std::size_t real, const OverlapSpan& out, bool keep) {
+                              const std::uint32_t* index, std::size_t real, const OverlapSpan& out,
+                              bool keep) {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, index, real, u);
       const PairLanes<B>& p = pair_[u];
@@ -108,7 +109,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
       B abs_q1[6], abs_q2[6];
       for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
-      const B spread = xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2);
+      const B spread =
+          xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2);
       margin_[u] = B(certificate_margin_per_growth<T>) *
                    xsimd::max(xsimd::max(growth(f1, p.q1), growth(f2, p.q2)), spread);
       const B rr = dot3(p.r, p.r);
@@ -145,8 +147,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const Adjugate<B> a1(p.q1), a2(p.q2);
       const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
       const B t1 = p.q1[0] + p.q1[3] + p.q1[5], t2 = p.q2[0] + p.q2[3] + p.q2[5];
-      const M conditioned = (t1 * t1 * t1 <= conditioning * a1.det) &
-                            (t2 * t2 * t2 <= conditioning * a2.det);
+      const M conditioned =
+          (t1 * t1 * t1 <= conditioning * a1.det) & (t2 * t2 * t2 <= conditioning * a2.det);
       const B rr = dot3(p.r, p.r);
       live_[u] = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
                  conditioned & prefilter_in_range(t1, t2, rr);
@@ -247,7 +249,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
     margin_[u] = xsimd::max(margin_[u], B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
     // Where the tangents at lo and hi cross: f_lo - g_lo (x - lo) =
     // f_hi - g_hi (x - hi), with g_lo < 0 < g_hi.
-    const B x = (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
+    const B x =
+        (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
     const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
     lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
     upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
@@ -329,8 +332,8 @@ template <class Arch, class T>
 void later_overlap_passes(OverlapKept<T>& kept, const OverlapSpan& out,
                           const ChunkSettings& settings, ChunkCounters& counters) {
   constexpr std::size_t size = OverlapBlock<Arch, T>::size;
-  const int cap = settings.iterations == automatic_iterations ? settings.max_iterations
-                                                              : settings.iterations;
+  const int cap =
+      settings.iterations == automatic_iterations ? settings.max_iterations : settings.iterations;
   for (int done = 0; kept.count > 0 && done < cap;) {
     const std::size_t count = kept.count;
     kept.count = 0;  // packed in place: a block is read before anything is written over it
@@ -347,7 +350,8 @@ void solve_overlap_on(const PairSpan<In>& in, const std::uint32_t* index, std::s
                       const OverlapSpan& out, const ChunkSettings& settings, OverlapKept<T>& kept,
                       ChunkCounters& counters) {
   for_each_block<Arch, OverlapBlock<Arch, T>::size>(
-      in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+      in, n,
+      [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
         overlap_first_block<Arch, T, In>(span, from, position, index ? index + position : nullptr,
                                          real, out, settings, counters, kept);
       });
@@ -360,7 +364,8 @@ __attribute__((noinline)) void overlap_prefilter_block(const PairSpan<In>& span,
                                                        std::size_t position, std::size_t real,
                                                        const OverlapSpan& out,
                                                        const ChunkSettings& settings,
-                                                       ChunkCounters& counters, OverlapKept<T>& kept) {
+                                                       ChunkCounters& counters,
+                                                       OverlapKept<T>& kept) {
   OverlapBlock<Arch, T> block(settings, counters, kept);
   block.prefilter(span, from, position, real, out);
 }
@@ -376,7 +381,8 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
   double* columns[pair_components];
   for (int k = 0; k < pair_components; ++k)
     columns[k] = scratch_array<double, used>(scratch, first + std::size_t(k));
-  positions = reinterpret_cast<std::uint32_t*>(scratch_array<double, used>(scratch, first + pair_components));
+  positions = reinterpret_cast<std::uint32_t*>(
+      scratch_array<double, used>(scratch, first + pair_components));
   count = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (status[i] != needs_fallback) continue;
@@ -386,9 +392,12 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
   PairSpan<double> span{};
   for (int k = 0; k < pair_components; ++k) {
     const double* column = columns[k];
-    if (k < 3) span.r12[k] = column;
-    else if (k < 9) span.q1[k - 3] = column;
-    else span.q2[k - 9] = column;
+    if (k < 3)
+      span.r12[k] = column;
+    else if (k < 9)
+      span.q1[k - 3] = column;
+    else
+      span.q2[k - 9] = column;
   }
   return span;
 }
@@ -403,7 +412,8 @@ void solve_overlap_in_two_passes(const PairSpan<In>& in, const OverlapSpan& out,
   {
     OverlapKept<Cheap> unused(scratch);  // the first pass keeps nothing
     for_each_block<Arch, OverlapBlock<Arch, Cheap>::size>(
-        in, n, [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
+        in, n,
+        [&](const PairSpan<In>& span, std::size_t from, std::size_t position, std::size_t real) {
           overlap_prefilter_block<Arch, Cheap, In>(span, from, position, real, out, settings,
                                                    counters, unused);
         },
@@ -411,7 +421,8 @@ void solve_overlap_in_two_passes(const PairSpan<In>& in, const OverlapSpan& out,
   }
   std::uint32_t* positions = nullptr;
   std::size_t count = 0;
-  const PairSpan<double> rest = gather_undecided<Arch>(in, n, out.status, scratch, positions, count);
+  const PairSpan<double> rest =
+      gather_undecided<Arch>(in, n, out.status, scratch, positions, count);
   OverlapKept<T> kept(scratch);
   solve_overlap_on<Arch, T, double>(rest, positions, count, out, settings, kept, counters);
 }

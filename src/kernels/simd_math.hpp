@@ -199,17 +199,17 @@ struct PairLanes {
 // the rest is dead code the compiler removes after inlining.
 template <class B>
 struct Evaluation {
-  B lambda, mu;   // lambda and 1 - lambda
-  B q[6];         // Q(lambda) = mu Q1 + lambda Q2, eq. (10)
+  B lambda, mu;  // lambda and 1 - lambda
+  B q[6];        // Q(lambda) = mu Q1 + lambda Q2, eq. (10)
   Ldlt<B> ldlt;
-  B s[3];         // Q⁻¹ r
-  B a[3], b[3];   // Q1 s and Q2 s: x0 - c1 = mu a, x0 - c2 = -lambda b (eq. 9)
-  B ya[3], yb[3]; // L⁻¹ a, L⁻¹ b
-  B rs;           // rᵀ Q⁻¹ r
-  B sa, sb;       // sᵀQ1 s, sᵀQ2 s
-  B f;            // f(lambda) = lambda mu rᵀQ⁻¹r, eq. (11)
-  B g;            // mu2² - mu1² = lambda² sb - mu² sa = -f'(lambda), eq. (13); increasing
-  B dg;           // g'(lambda) = 2 aᵀQ⁻¹b = 2 sᵀ[mu Q2⁻¹ + lambda Q1⁻¹]⁻¹ s >= 0
+  B s[3];          // Q⁻¹ r
+  B a[3], b[3];    // Q1 s and Q2 s: x0 - c1 = mu a, x0 - c2 = -lambda b (eq. 9)
+  B ya[3], yb[3];  // L⁻¹ a, L⁻¹ b
+  B rs;            // rᵀ Q⁻¹ r
+  B sa, sb;        // sᵀQ1 s, sᵀQ2 s
+  B f;             // f(lambda) = lambda mu rᵀQ⁻¹r, eq. (11)
+  B g;             // mu2² - mu1² = lambda² sb - mu² sa = -f'(lambda), eq. (13); increasing
+  B dg;            // g'(lambda) = 2 aᵀQ⁻¹b = 2 sᵀ[mu Q2⁻¹ + lambda Q1⁻¹]⁻¹ s >= 0
 };
 
 template <class B>
@@ -259,10 +259,10 @@ PWCONTACT_INLINE B newton_step(const Evaluation<B>& e) {
 template <class B>
 PWCONTACT_INLINE B log_odds_step(const Evaluation<B>& e) {
   const Ldlt<B>& l = e.ldlt;
-  const B aqa = e.ya[0] * e.ya[0] * l.inv_d0 + e.ya[1] * e.ya[1] * l.inv_d1 +
-                e.ya[2] * e.ya[2] * l.inv_d2;
-  const B bqb = e.yb[0] * e.yb[0] * l.inv_d0 + e.yb[1] * e.yb[1] * l.inv_d1 +
-                e.yb[2] * e.yb[2] * l.inv_d2;
+  const B aqa =
+      e.ya[0] * e.ya[0] * l.inv_d0 + e.ya[1] * e.ya[1] * l.inv_d1 + e.ya[2] * e.ya[2] * l.inv_d2;
+  const B bqb =
+      e.yb[0] * e.yb[0] * l.inv_d0 + e.yb[1] * e.yb[1] * l.inv_d1 + e.yb[2] * e.yb[2] * l.inv_d2;
   const B aqb = B(0.5) * e.dg;
   const B mu1 = e.mu * e.mu * e.sa, mu2 = e.lambda * e.lambda * e.sb;
   // dt = numerator / denominator with both multiplied by sa sb (mu1² + mu2²)
@@ -273,8 +273,7 @@ PWCONTACT_INLINE B log_odds_step(const Evaluation<B>& e) {
   const B limit = B(1.5) * denominator;
   numerator = xsimd::min(xsimd::max(numerator, -limit), limit);
   const B two_d = B(2) * denominator;
-  const B next = e.lambda * (two_d + numerator) /
-                 (two_d + numerator * (B(2) * e.lambda - B(1)));
+  const B next = e.lambda * (two_d + numerator) / (two_d + numerator * (B(2) * e.lambda - B(1)));
   return xsimd::select(denominator > B(0), next, newton_step(e));
 }
 
@@ -307,7 +306,8 @@ PWCONTACT_INLINE void two_product(const B& a, const B& b, B& p, B& e) {
   } else if constexpr (std::is_base_of<xsimd::fma3<xsimd::avx2>, Arch>::value) {
     e = xsimd::fms(a, b, p);  // a real vfmsub on fma3
   } else {
-    const B splitter(std::is_same<T, double>::value ? T(134217729.0) : T(4097.0));  // 2^27+1, 2^12+1
+    const B splitter(std::is_same<T, double>::value ? T(134217729.0)
+                                                    : T(4097.0));  // 2^27+1, 2^12+1
     const B ca = splitter * a, cb = splitter * b;
     const B a_hi = ca - (ca - a), b_hi = cb - (cb - b);
     const B a_lo = a - a_hi, b_lo = b - b_hi;
@@ -377,12 +377,13 @@ PWCONTACT_COLD Refined<B> refined_f(const PairLanes<B> p, const Ldlt<B> ldlt, co
 
 template <class Arch>
 PWCONTACT_INLINE xsimd::batch<float, Arch> narrow(const xsimd::batch<double, Arch>& lo,
-                                        const xsimd::batch<double, Arch>& hi) {
+                                                  const xsimd::batch<double, Arch>& hi) {
   if constexpr (is_avx512<Arch>) {
     const __m512 low = _mm512_castps256_ps512(_mm512_cvtpd_ps(lo));
     return _mm512_insertf32x8(low, _mm512_cvtpd_ps(hi), 1);
   } else if constexpr (std::is_base_of<xsimd::avx, Arch>::value) {
-    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm256_cvtpd_ps(lo)), _mm256_cvtpd_ps(hi), 1);
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm256_cvtpd_ps(lo)), _mm256_cvtpd_ps(hi),
+                                1);
   } else {
     return _mm_movelh_ps(_mm_cvtpd_ps(lo), _mm_cvtpd_ps(hi));
   }
@@ -390,7 +391,7 @@ PWCONTACT_INLINE xsimd::batch<float, Arch> narrow(const xsimd::batch<double, Arc
 
 template <class Arch>
 PWCONTACT_INLINE void widen(const xsimd::batch<float, Arch>& x, xsimd::batch<double, Arch>& lo,
-                  xsimd::batch<double, Arch>& hi) {
+                            xsimd::batch<double, Arch>& hi) {
   if constexpr (is_avx512<Arch>) {
     lo = _mm512_cvtps_pd(_mm512_castps512_ps256(x));
     hi = _mm512_cvtps_pd(_mm512_extractf32x8_ps(x, 1));

@@ -11,5 +11,6 @@
 #pragma once
 
 #ifndef PWCONTACT_TARGET
-#error "kernel bodies are compiled once per target: include them from kernels/contact_<target>.cpp, which defines PWCONTACT_TARGET"
+#error \
+    "kernel bodies are compiled once per target: include them from kernels/contact_<target>.cpp, which defines PWCONTACT_TARGET"
 #endif

@@ -25,8 +25,8 @@
 #include <string>
 #include <vector>
 
-#include "parallel_errors.hpp"
 #include "fixtures/families.hpp"
+#include "parallel_errors.hpp"
 #include "pwcontact/pwcontact.hpp"
 
 namespace py = pybind11;
@@ -62,7 +62,8 @@ Rows<T> rows_of(const py::handle& object, int k, const char* name) {
   // beyond their gathers' +-2^26 numbers): a C-ordered copy.
   constexpr py::ssize_t reach = py::ssize_t(1) << 26;
   for (py::ssize_t d = 0; d < a.ndim(); ++d)
-    if (a.strides(d) % py::ssize_t(sizeof(T)) != 0 || a.strides(d) / py::ssize_t(sizeof(T)) > reach ||
+    if (a.strides(d) % py::ssize_t(sizeof(T)) != 0 ||
+        a.strides(d) / py::ssize_t(sizeof(T)) > reach ||
         a.strides(d) / py::ssize_t(sizeof(T)) < -reach) {
       a = py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(a);
       break;
@@ -77,8 +78,8 @@ Rows<T> rows_of(const py::handle& object, int k, const char* name) {
     r.row_stride = a.strides(0) / py::ssize_t(sizeof(T));
     r.column_stride = a.strides(1) / py::ssize_t(sizeof(T));
   } else {
-    throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(k) + ") or (" +
-                          std::to_string(k) + ",), got " + shape_text(a));
+    throw py::value_error(std::string(name) + " must have shape (N, " + std::to_string(k) +
+                          ") or (" + std::to_string(k) + ",), got " + shape_text(a));
   }
   r.data = a.data();
   r.keep = std::move(a);
@@ -100,8 +101,8 @@ Rows<double> orientation_rows(const py::object& orientations) {
 template <class T>
 void expect_rows(const Rows<T>& a, std::size_t n, const char* name) {
   if (!a.broadcast && a.rows != n)
-    throw py::value_error(std::string(name) + " has " + std::to_string(a.rows) + " rows, positions " +
-                          std::to_string(n));
+    throw py::value_error(std::string(name) + " has " + std::to_string(a.rows) +
+                          " rows, positions " + std::to_string(n));
 }
 
 // The common N of arrays of N rows or broadcast ones (N = 1 when all are).
@@ -114,7 +115,8 @@ std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arra
       if (any && rows != n) {
         std::string text = "arrays of different lengths:";
         auto name = names.begin();
-        for (const auto& [r, b] : arrays) text += std::string(" ") + *name++ + (b ? " (broadcast)" : " " + std::to_string(r));
+        for (const auto& [r, b] : arrays)
+          text += std::string(" ") + *name++ + (b ? " (broadcast)" : " " + std::to_string(r));
         throw py::value_error(text);
       }
       n = rows;
@@ -124,7 +126,8 @@ std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arra
 }
 
 int thread_count(int threads) {
-  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all), got " + std::to_string(threads));
+  if (threads < 0)
+    throw py::value_error("threads must be >= 0 (0: all), got " + std::to_string(threads));
   return threads > 0 ? threads : omp_get_max_threads();
 }
 
@@ -132,21 +135,27 @@ pwcontact::BatchOptions batch_options(const std::string& precision, const py::ob
                                       const std::string& accuracy, const std::string& isa) {
   pwcontact::BatchOptions o;
   const auto p = pwcontact::parse_precision(precision);
-  if (!p) throw py::value_error("precision must be one of auto, double, float, mixed; got '" + precision + "'");
+  if (!p)
+    throw py::value_error("precision must be one of auto, double, float, mixed; got '" + precision +
+                          "'");
   o.precision = *p;
   const auto a = pwcontact::parse_accuracy(accuracy);
   if (!a) throw py::value_error("accuracy must be standard or high; got '" + accuracy + "'");
   o.accuracy = *a;
   const auto i = pwcontact::parse_isa(isa);
-  if (!i) throw py::value_error("isa must be one of auto, sse2, avx2, avx512, fallback; got '" + isa + "'");
+  if (!i)
+    throw py::value_error("isa must be one of auto, sse2, avx2, avx512, fallback; got '" + isa +
+                          "'");
   o.isa = *i;
-  if (iterations.is_none() || (py::isinstance<py::str>(iterations) && iterations.cast<std::string>() == "auto")) {
+  if (iterations.is_none() ||
+      (py::isinstance<py::str>(iterations) && iterations.cast<std::string>() == "auto")) {
     o.iterations = pwcontact::automatic_iterations;
   } else {
     const long n = iterations.cast<long>();
     if (n < 1 || n > pwcontact::max_automatic_iterations)
       throw py::value_error("iterations must be 'auto' or 1 .. " +
-                            std::to_string(pwcontact::max_automatic_iterations) + ", got " + std::to_string(n));
+                            std::to_string(pwcontact::max_automatic_iterations) + ", got " +
+                            std::to_string(n));
     o.iterations = int(n);
   }
   return o;
@@ -160,11 +169,16 @@ Outputs parse_outputs(const std::vector<std::string>& names) {
   Outputs o;
   o.mu2 = false;
   for (const std::string& n : names) {
-    if (n == "mu2") o.mu2 = true;
-    else if (n == "lambda") o.lambda = true;
-    else if (n == "contact_point") o.contact_point = true;
-    else if (n == "normal") o.normal = true;
-    else if (n == "gradient") o.gradient = true;
+    if (n == "mu2")
+      o.mu2 = true;
+    else if (n == "lambda")
+      o.lambda = true;
+    else if (n == "contact_point")
+      o.contact_point = true;
+    else if (n == "normal")
+      o.normal = true;
+    else if (n == "gradient")
+      o.gradient = true;
     else
       throw py::value_error("unknown output '" + n +
                             "' (outputs: mu2, lambda, contact_point, normal, gradient)");
@@ -172,22 +186,23 @@ Outputs parse_outputs(const std::vector<std::string>& names) {
   return o;
 }
 
-
 // An output array of n elements: the caller's (out[key], which must be a
 // writeable C-contiguous array of shape (n,) and of the result's dtype), or
 // a new one.
 template <class T>
 py::array_t<T> output_array(const py::object& out, const char* key, std::size_t n) {
-  if (out.is_none() || !py::cast<py::dict>(out).contains(key)) return py::array_t<T>(py::ssize_t(n));
+  if (out.is_none() || !py::cast<py::dict>(out).contains(key))
+    return py::array_t<T>(py::ssize_t(n));
   const py::object given = py::cast<py::dict>(out)[key];
   const std::string what = std::string("out['") + key + "']";
   if (!py::isinstance<py::array>(given)) throw py::value_error(what + " must be a numpy array");
   const py::array a = py::reinterpret_borrow<py::array>(given);
   if (!a.dtype().is(py::dtype::of<T>()))
-    throw py::value_error(what + " must have dtype " + std::string(py::str(py::dtype::of<T>())) + ", got " +
-                          std::string(py::str(a.dtype())));
+    throw py::value_error(what + " must have dtype " + std::string(py::str(py::dtype::of<T>())) +
+                          ", got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 1 || std::size_t(a.shape(0)) != n)
-    throw py::value_error(what + " must have shape (" + std::to_string(n) + ",), got " + shape_text(a));
+    throw py::value_error(what + " must have shape (" + std::to_string(n) + ",), got " +
+                          shape_text(a));
   if (!(a.flags() & py::array::c_style) || !a.writeable())
     throw py::value_error(what + " must be C-contiguous and writeable");
   return py::reinterpret_borrow<py::array_t<T>>(given);
@@ -247,12 +262,14 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
                                 const py::object& lambda_start_in, const py::object& out_in) {
   const Rows<T> r12 = rows_of<T>(r12_in, 3, "r12"), q1 = rows_of<T>(q1_in, 6, "q1"),
                 q2 = rows_of<T>(q2_in, 6, "q2");
-  const std::size_t n = common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
-                                    {"r12", "q1", "q2"});
+  const std::size_t n =
+      common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
+                  {"r12", "q1", "q2"});
   py::array_t<T> lambda_start;  // (a default array_t is an empty array, not a null one)
   const bool warm = !lambda_start_in.is_none();
   if (warm) {
-    lambda_start = py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(lambda_start_in);
+    lambda_start =
+        py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(lambda_start_in);
     if (!lambda_start || lambda_start.ndim() != 1 || std::size_t(lambda_start.shape(0)) != n)
       throw py::value_error("lambda_start must have shape (" + std::to_string(n) + ",)");
   }
@@ -299,7 +316,8 @@ bool is_float32(const py::handle& object) {
 py::dict contact_function(const py::object& r12, const py::object& q1, const py::object& q2,
                           const std::vector<std::string>& outputs, const std::string& precision,
                           const py::object& iterations, const std::string& accuracy, int threads,
-                          const std::string& isa, const py::object& lambda_start, const py::object& out) {
+                          const std::string& isa, const py::object& lambda_start,
+                          const py::object& out) {
   const Outputs wanted = parse_outputs(outputs);
   const pwcontact::BatchOptions options = batch_options(precision, iterations, accuracy, isa);
   // float32 pairs are solved as float pairs (float results) unless a
@@ -307,7 +325,8 @@ py::dict contact_function(const py::object& r12, const py::object& q1, const py:
   const bool single = is_float32(r12) && is_float32(q1) && is_float32(q2) &&
                       (options.precision == pwcontact::Precision::automatic ||
                        options.precision == pwcontact::Precision::single_precision);
-  if (single) return contact_function_typed<float>(r12, q1, q2, wanted, options, threads, lambda_start, out);
+  if (single)
+    return contact_function_typed<float>(r12, q1, q2, wanted, options, threads, lambda_start, out);
   return contact_function_typed<double>(r12, q1, q2, wanted, options, threads, lambda_start, out);
 }
 
@@ -316,15 +335,18 @@ py::dict overlap_typed(const py::handle& r12_in, const py::handle& q1_in, const 
                        double cutoff, pwcontact::BatchOptions options, int threads) {
   const Rows<T> r12 = rows_of<T>(r12_in, 3, "r12"), q1 = rows_of<T>(q1_in, 6, "q1"),
                 q2 = rows_of<T>(q2_in, 6, "q2");
-  const std::size_t n = common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
-                                    {"r12", "q1", "q2"});
+  const std::size_t n =
+      common_rows({{r12.rows, r12.broadcast}, {q1.rows, q1.broadcast}, {q2.rows, q2.broadcast}},
+                  {"r12", "q1", "q2"});
   py::array_t<bool> overlap{py::ssize_t(n)};
   py::array_t<std::uint8_t> status{py::ssize_t(n)};
   const pwcontact::OverlapOutputs outputs{reinterpret_cast<std::uint8_t*>(overlap.mutable_data()),
                                           reinterpret_cast<Status*>(status.mutable_data())};
   options.threads = thread_count(threads);
   pwcontact::BatchReport totals;
-  without_gil([&] { totals = pwcontact::overlap_batch(view_of(r12, q1, q2, n), outputs, options, cutoff); });
+  without_gil([&] {
+    totals = pwcontact::overlap_batch(view_of(r12, q1, q2, n), outputs, options, cutoff);
+  });
   py::dict result;
   result["overlap"] = overlap;
   result["status"] = status;
@@ -350,7 +372,8 @@ py::dict overlap(const py::object& r12, const py::object& q1, const py::object& 
 }
 
 // Q from semi-axes (N, 3) and quaternions (N, 4) (w, x, y, z), either broadcast.
-py::array_t<double> quadratic_form(const py::object& semi_axes_in, const py::object& orientation_in) {
+py::array_t<double> quadratic_form(const py::object& semi_axes_in,
+                                   const py::object& orientation_in) {
   const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
   const Rows<double> q = rows_of<double>(orientation_in, 4, "orientation");
   const std::size_t n = common_rows({{axes.rows, axes.broadcast}, {q.rows, q.broadcast}},
@@ -392,25 +415,27 @@ pwcontact::Box make_box(const py::object& box) {
 
 // A store from numpy arrays: forms q (N, 6); or semi-axes (N, 3 | 3,) and
 // orientations (N, 4 | 4,); or per-type semi-axes (T, 3) and type_id (N,).
-pwcontact::ParticleStore make_store(const py::object& positions_in, const py::object& orientations_in,
+pwcontact::ParticleStore make_store(const py::object& positions_in,
+                                    const py::object& orientations_in,
                                     const py::object& semi_axes_in, const py::object& q_in,
-                                    const py::object& type_semi_axes_in, const py::object& typeid_in,
-                                    int threads) {
+                                    const py::object& type_semi_axes_in,
+                                    const py::object& typeid_in, int threads) {
   const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
   if (positions.broadcast) throw py::value_error("positions must have shape (N, 3)");
   const std::size_t n = positions.rows;
   pwcontact::ParticleStore store;
   const Rows<double> orientations = orientation_rows(orientations_in);
   expect_rows(orientations, n, "orientations");
-  const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none()) + int(!type_semi_axes_in.is_none());
+  const int given =
+      int(!semi_axes_in.is_none()) + int(!q_in.is_none()) + int(!type_semi_axes_in.is_none());
   if (given != 1)
     throw py::value_error("give the shapes one way: semi_axes, q, or type_semi_axes with typeid");
   auto centre = [&](std::size_t i) {
     return std::array<double, 3>{positions.at(i, 0), positions.at(i, 1), positions.at(i, 2)};
   };
   auto quaternion = [&](std::size_t i) {
-    return std::array<double, 4>{orientations.at(i, 0), orientations.at(i, 1), orientations.at(i, 2),
-                                 orientations.at(i, 3)};
+    return std::array<double, 4>{orientations.at(i, 0), orientations.at(i, 1),
+                                 orientations.at(i, 2), orientations.at(i, 3)};
   };
   // Every particle set by `set(i)`, over the threads, without the GIL.
   pwcontact::detail::ParallelErrors errors;
@@ -424,7 +449,8 @@ pwcontact::ParticleStore make_store(const py::object& positions_in, const py::ob
     const Rows<double> q = rows_of<double>(q_in, 6, "q");
     expect_rows(q, n, "q");
     fill([&](std::size_t i) {
-      store.set(i, centre(i), {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3), q.at(i, 4), q.at(i, 5)});
+      store.set(i, centre(i),
+                {q.at(i, 0), q.at(i, 1), q.at(i, 2), q.at(i, 3), q.at(i, 4), q.at(i, 5)});
     });
   } else if (!semi_axes_in.is_none()) {
     const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
@@ -441,7 +467,8 @@ pwcontact::ParticleStore make_store(const py::object& positions_in, const py::ob
   } else {
     if (typeid_in.is_none()) throw py::value_error("type_semi_axes needs typeid");
     const Rows<double> types = rows_of<double>(type_semi_axes_in, 3, "type_semi_axes");
-    for (std::size_t t = 0; t < types.rows; ++t) store.add_type({types.at(t, 0), types.at(t, 1), types.at(t, 2)});
+    for (std::size_t t = 0; t < types.rows; ++t)
+      store.add_type({types.at(t, 0), types.at(t, 1), types.at(t, 2)});
     auto typeid_array = py::array_t<std::uint32_t, py::array::forcecast>::ensure(typeid_in);
     if (!typeid_array || typeid_array.ndim() != 1 || std::size_t(typeid_array.shape(0)) != n)
       throw py::value_error("typeid must have shape (" + std::to_string(n) + ",)");
@@ -498,9 +525,10 @@ py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool wit
   return d;
 }
 
-py::dict screen(const py::object& positions, const py::object& orientations, const py::object& semi_axes,
-                const py::object& q, const py::object& type_semi_axes, const py::object& type_id,
-                const py::object& box, double cutoff, bool with_mu2, int threads) {
+py::dict screen(const py::object& positions, const py::object& orientations,
+                const py::object& semi_axes, const py::object& q, const py::object& type_semi_axes,
+                const py::object& type_id, const py::object& box, double cutoff, bool with_mu2,
+                int threads) {
   const int used = thread_count(threads);
   pwcontact::ParticleStore store =
       make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
@@ -554,23 +582,27 @@ py::dict scene_dict(const pwcontact::Scene& s) {
 // The persistent scene of trial moves (moving_scene.hpp).
 class PyMovingScene {
  public:
-  PyMovingScene(const py::object& positions, const py::object& orientations, const py::object& semi_axes,
-                const py::object& q, const py::object& type_semi_axes, const py::object& type_id,
-                const py::object& box)
-      : scene_(make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, 1), make_box(box)) {}
+  PyMovingScene(const py::object& positions, const py::object& orientations,
+                const py::object& semi_axes, const py::object& q, const py::object& type_semi_axes,
+                const py::object& type_id, const py::object& box)
+      : scene_(make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, 1),
+               make_box(box)) {}
 
   std::size_t size() const { return scene_.size(); }
 
-  pwcontact::ParticleStore::Particle trial(const py::object& position, const py::object& orientation,
+  pwcontact::ParticleStore::Particle trial(const py::object& position,
+                                           const py::object& orientation,
                                            const py::object& semi_axes, const py::object& q,
                                            const py::object& type_id) const {
     const auto c = position.cast<std::array<double, 3>>();
-    const std::array<double, 4> o =
-        orientation.is_none() ? std::array<double, 4>{1, 0, 0, 0} : orientation.cast<std::array<double, 4>>();
+    const std::array<double, 4> o = orientation.is_none()
+                                        ? std::array<double, 4>{1, 0, 0, 0}
+                                        : orientation.cast<std::array<double, 4>>();
     const int given = int(!semi_axes.is_none()) + int(!q.is_none()) + int(!type_id.is_none());
     if (given != 1) throw py::value_error("give the trial's shape one way: semi_axes, q or typeid");
     if (!q.is_none()) return scene_.trial(c, q.cast<std::array<double, 6>>());
-    if (!semi_axes.is_none()) return scene_.trial_axes(c, semi_axes.cast<std::array<double, 3>>(), o);
+    if (!semi_axes.is_none())
+      return scene_.trial_axes(c, semi_axes.cast<std::array<double, 3>>(), o);
     return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
   }
 
@@ -588,7 +620,8 @@ class PyMovingScene {
     const Rows<double> orientations = orientation_rows(orientations_in);
     const Rows<double> shape = q_in.is_none() ? rows_of<double>(semi_axes_in, 3, "semi_axes")
                                               : rows_of<double>(q_in, 6, "q");
-    common_rows({{positions.rows, positions.broadcast}, {orientations.rows, orientations.broadcast},
+    common_rows({{positions.rows, positions.broadcast},
+                 {orientations.rows, orientations.broadcast},
                  {shape.rows, shape.broadcast}},
                 {"positions", "orientations", q_in.is_none() ? "semi_axes" : "q"});
     std::vector<pwcontact::ParticleStore::Particle> out;
@@ -599,11 +632,15 @@ class PyMovingScene {
       if (q_in.is_none())
         out.push_back(pwcontact::ParticleStore::particle_axes(
             c, {shape.at(k, 0), shape.at(k, 1), shape.at(k, 2)},
-            {orientations.at(k, 0), orientations.at(k, 1), orientations.at(k, 2), orientations.at(k, 3)}, who));
-      else
-        out.push_back(pwcontact::ParticleStore::particle(
-            c, {shape.at(k, 0), shape.at(k, 1), shape.at(k, 2), shape.at(k, 3), shape.at(k, 4), shape.at(k, 5)},
+            {orientations.at(k, 0), orientations.at(k, 1), orientations.at(k, 2),
+             orientations.at(k, 3)},
             who));
+      else
+        out.push_back(
+            pwcontact::ParticleStore::particle(c,
+                                               {shape.at(k, 0), shape.at(k, 1), shape.at(k, 2),
+                                                shape.at(k, 3), shape.at(k, 4), shape.at(k, 5)},
+                                               who));
     }
     return out;
   }
@@ -618,8 +655,8 @@ double now_seconds() { return omp_get_wtime(); }
 
 double time_batch(const py::array_t<double, py::array::c_style | py::array::forcecast>& r12,
                   const py::array_t<double, py::array::c_style | py::array::forcecast>& q1,
-                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q2, int threads,
-                  bool rows, bool fresh_outputs) {
+                  const py::array_t<double, py::array::c_style | py::array::forcecast>& q2,
+                  int threads, bool rows, bool fresh_outputs) {
   const std::size_t n = std::size_t(r12.shape(0));
   pwcontact::PairBatch<double> batch(rows ? 0 : n);
   pwcontact::PairBatchView<double> view;
@@ -630,7 +667,8 @@ double time_batch(const py::array_t<double, py::array::c_style | py::array::forc
     view.r12_stride = 3;
     view.q1_stride = view.q2_stride = 6;
   } else {  // columns of their own
-    for (std::size_t i = 0; i < n; ++i) batch.set(i, r12.data() + 3 * i, q1.data() + 6 * i, q2.data() + 6 * i);
+    for (std::size_t i = 0; i < n; ++i)
+      batch.set(i, r12.data() + 3 * i, q1.data() + 6 * i, q2.data() + 6 * i);
     view = batch.view();
   }
   // Outputs written before the clock starts (as out= arrays reused are), or
@@ -654,8 +692,8 @@ double time_batch(const py::array_t<double, py::array::c_style | py::array::forc
 
 // (seconds of screen_pairs, seconds of building the store from the arrays)
 std::pair<double, double> time_screen(const py::object& positions, const py::object& orientations,
-                                      const py::object& semi_axes, const py::object& box, double cutoff,
-                                      int threads) {
+                                      const py::object& semi_axes, const py::object& box,
+                                      double cutoff, int threads) {
   const int used = thread_count(threads);
   const double build_start = now_seconds();
   const pwcontact::ParticleStore store =
@@ -692,8 +730,8 @@ PYBIND11_MODULE(_pwcontact, m) {
         py::arg("precision"), py::arg("iterations"), py::arg("threads"), py::arg("isa"));
   m.def("quadratic_form", &quadratic_form, py::arg("semi_axes"), py::arg("orientation"));
   m.def("screen", &screen, py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"),
-        py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"), py::arg("cutoff"),
-        py::arg("with_mu2"), py::arg("threads"));
+        py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"),
+        py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"));
   m.def("read_gsd", [](const std::string& path, std::int64_t frame) {
     pwcontact::Scene s;
     {
@@ -722,7 +760,8 @@ PYBIND11_MODULE(_pwcontact, m) {
     auto take = [&](const char* key, std::string& into) {
       if (const auto it = names.find(key); it != names.end()) into = it->second, ++used;
     };
-    for (int k = 0; k < 3; ++k) take(position[k], columns.position[k]), take(shape[k], columns.shape[k]);
+    for (int k = 0; k < 3; ++k)
+      take(position[k], columns.position[k]), take(shape[k], columns.shape[k]);
     for (int k = 0; k < 4; ++k) take(quaternion[k], columns.quaternion[k]);
     if (used != names.size()) {
       std::string unknown;
@@ -744,23 +783,29 @@ PYBIND11_MODULE(_pwcontact, m) {
     return scene_dict(s);
   });
   // The scalar reference path for one pair (as a per-pair binding is used).
-  m.def("reference", [](const std::array<double, 3>& r12, const std::array<double, 6>& q1,
-                        const std::array<double, 6>& q2) {
-    const pwcontact::ContactResult<double> r = pwcontact::contact_function<double>(r12.data(), q1.data(), q2.data());
-    return py::make_tuple(r.mu2, r.lambda, int(r.status));
-  }, py::arg("r12"), py::arg("q1"), py::arg("q2"));
-  m.def("_time_batch", &time_batch, py::arg("r12"), py::arg("q1"), py::arg("q2"), py::arg("threads"),
-        py::arg("rows") = false, py::arg("fresh_outputs") = false);
+  m.def(
+      "reference",
+      [](const std::array<double, 3>& r12, const std::array<double, 6>& q1,
+         const std::array<double, 6>& q2) {
+        const pwcontact::ContactResult<double> r =
+            pwcontact::contact_function<double>(r12.data(), q1.data(), q2.data());
+        return py::make_tuple(r.mu2, r.lambda, int(r.status));
+      },
+      py::arg("r12"), py::arg("q1"), py::arg("q2"));
+  m.def("_time_batch", &time_batch, py::arg("r12"), py::arg("q1"), py::arg("q2"),
+        py::arg("threads"), py::arg("rows") = false, py::arg("fresh_outputs") = false);
   m.def("_time_screen", &time_screen);
   m.def("status_names", [] {
     std::vector<std::pair<std::string, std::string>> names;
     for (int s = 0; s < pwcontact::status_count; ++s)
-      names.emplace_back(pwcontact::status_name(Status(s)), pwcontact::status_description(Status(s)));
+      names.emplace_back(pwcontact::status_name(Status(s)),
+                         pwcontact::status_description(Status(s)));
     return names;
   });
   m.def("supported_isas", [] {
     std::vector<std::string> names;
-    for (pwcontact::Isa isa : pwcontact::supported_isas()) names.emplace_back(pwcontact::isa_name(isa));
+    for (pwcontact::Isa isa : pwcontact::supported_isas())
+      names.emplace_back(pwcontact::isa_name(isa));
     return names;
   });
   m.def("spheroid_scene", [](std::size_t n, std::uint64_t seed, double packing, double max_aspect) {
@@ -769,8 +814,8 @@ PYBIND11_MODULE(_pwcontact, m) {
       py::gil_scoped_release release;
       s = pwcontact::spheroid_scene(n, seed, packing, max_aspect);
     }
-    py::array_t<double> positions({py::ssize_t(n), py::ssize_t(3)}), axes({py::ssize_t(n), py::ssize_t(3)}),
-        orientations({py::ssize_t(n), py::ssize_t(4)});
+    py::array_t<double> positions({py::ssize_t(n), py::ssize_t(3)}),
+        axes({py::ssize_t(n), py::ssize_t(3)}), orientations({py::ssize_t(n), py::ssize_t(4)});
     auto p = positions.mutable_unchecked<2>();
     auto a = axes.mutable_unchecked<2>();
     auto o = orientations.mutable_unchecked<2>();
@@ -782,7 +827,8 @@ PYBIND11_MODULE(_pwcontact, m) {
     d["positions"] = positions;
     d["orientations"] = orientations;
     d["semi_axes"] = axes;
-    d["box"] = py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], 0.0, 0.0, 0.0, 3, true);
+    d["box"] =
+        py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], 0.0, 0.0, 0.0, 3, true);
     return d;
   });
 
@@ -795,56 +841,65 @@ PYBIND11_MODULE(_pwcontact, m) {
       .def("__len__", &PyMovingScene::size)
       .def("trial", &PyMovingScene::trial, py::arg("position"), py::arg("orientation"),
            py::arg("semi_axes"), py::arg("q"), py::arg("typeid"))
-      .def("insert", [](PyMovingScene& s, const pwcontact::ParticleStore::Particle& p) { return s.scene_.insert(p); })
+      .def("insert", [](PyMovingScene& s,
+                        const pwcontact::ParticleStore::Particle& p) { return s.scene_.insert(p); })
       .def("remove", [](PyMovingScene& s, std::size_t i) { return s.scene_.remove(i); })
-      .def("move", [](PyMovingScene& s, std::size_t i, const pwcontact::ParticleStore::Particle& p) {
-        s.scene_.move(i, p);
-      })
-      .def("overlaps", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, std::int64_t exclude) {
-        py::gil_scoped_release release;
-        return s.scene_.overlaps(p, exclude);
-      })
-      .def("overlap_count", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
-                               std::int64_t exclude) {
-        py::gil_scoped_release release;
-        return s.scene_.overlap_count(p, exclude);
-      })
-      .def("neighbors", [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, double cutoff,
-                           bool with_mu2, std::int64_t exclude) {
-        std::vector<pwcontact::Neighbor> found;
-        {
-          py::gil_scoped_release release;
-          found = s.scene_.neighbors(p, cutoff, with_mu2, exclude);
-        }
-        py::array_t<std::uint32_t> index{py::ssize_t(found.size())};
-        py::array_t<double> mu2{py::ssize_t(found.size())};
-        for (std::size_t k = 0; k < found.size(); ++k) {
-          index.mutable_data()[k] = found[k].index;
-          mu2.mutable_data()[k] = found[k].mu2;
-        }
-        return py::make_tuple(index, mu2);
-      })
-      .def("overlaps_many", [](const PyMovingScene& s, const py::object& positions, const py::object& orientations,
-                               const py::object& semi_axes, const py::object& q, const py::object& exclude_in,
-                               int threads) {
-        const std::vector<pwcontact::ParticleStore::Particle> trials = s.trials(positions, orientations, semi_axes, q);
-        const std::size_t m = trials.size();
-        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> exclude;
-        if (!exclude_in.is_none()) {
-          exclude = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(exclude_in);
-          if (!exclude || exclude.ndim() != 1 || std::size_t(exclude.shape(0)) != m)
-            throw py::value_error("exclude must have shape (" + std::to_string(m) + ",)");
-        }
-        const std::int64_t* exclude_data = exclude_in.is_none() ? nullptr : exclude.data();
-        py::array_t<std::int64_t> first{py::ssize_t(m)};
-        std::int64_t* first_data = first.mutable_data();
-        const int used = thread_count(threads);
-        {
-          py::gil_scoped_release release;
-          s.scene_.overlaps(trials.data(), exclude_data, m, first_data, used);
-        }
-        return first;
-      })
-      .def("positions", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
+      .def("move", [](PyMovingScene& s, std::size_t i,
+                      const pwcontact::ParticleStore::Particle& p) { s.scene_.move(i, p); })
+      .def("overlaps",
+           [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
+              std::int64_t exclude) {
+             py::gil_scoped_release release;
+             return s.scene_.overlaps(p, exclude);
+           })
+      .def("overlap_count",
+           [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
+              std::int64_t exclude) {
+             py::gil_scoped_release release;
+             return s.scene_.overlap_count(p, exclude);
+           })
+      .def("neighbors",
+           [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, double cutoff,
+              bool with_mu2, std::int64_t exclude) {
+             std::vector<pwcontact::Neighbor> found;
+             {
+               py::gil_scoped_release release;
+               found = s.scene_.neighbors(p, cutoff, with_mu2, exclude);
+             }
+             py::array_t<std::uint32_t> index{py::ssize_t(found.size())};
+             py::array_t<double> mu2{py::ssize_t(found.size())};
+             for (std::size_t k = 0; k < found.size(); ++k) {
+               index.mutable_data()[k] = found[k].index;
+               mu2.mutable_data()[k] = found[k].mu2;
+             }
+             return py::make_tuple(index, mu2);
+           })
+      .def("overlaps_many",
+           [](const PyMovingScene& s, const py::object& positions, const py::object& orientations,
+              const py::object& semi_axes, const py::object& q, const py::object& exclude_in,
+              int threads) {
+             const std::vector<pwcontact::ParticleStore::Particle> trials =
+                 s.trials(positions, orientations, semi_axes, q);
+             const std::size_t m = trials.size();
+             py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> exclude;
+             if (!exclude_in.is_none()) {
+               exclude =
+                   py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(
+                       exclude_in);
+               if (!exclude || exclude.ndim() != 1 || std::size_t(exclude.shape(0)) != m)
+                 throw py::value_error("exclude must have shape (" + std::to_string(m) + ",)");
+             }
+             const std::int64_t* exclude_data = exclude_in.is_none() ? nullptr : exclude.data();
+             py::array_t<std::int64_t> first{py::ssize_t(m)};
+             std::int64_t* first_data = first.mutable_data();
+             const int used = thread_count(threads);
+             {
+               py::gil_scoped_release release;
+               s.scene_.overlaps(trials.data(), exclude_data, m, first_data, used);
+             }
+             return first;
+           })
+      .def("positions",
+           [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
       .def("q", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), true); });
 }

@@ -36,7 +36,8 @@ class GsdFile {
     if (fstat(descriptor_, &info) != 0) fail_io();
     size_ = std::uint64_t(info.st_size);
     Header header;
-    if (size_ < sizeof header) malformed("shorter than a GSD header (" + std::to_string(size_) + " bytes)");
+    if (size_ < sizeof header)
+      malformed("shorter than a GSD header (" + std::to_string(size_) + " bytes)");
     read_at(0, &header, sizeof header);
     if (header.magic != gsd_magic) malformed("not a GSD file (no GSD magic number)");
     version_ = header.gsd_version;
@@ -97,7 +98,8 @@ class GsdFile {
       case int64: convert(std::int64_t()); break;
       case float32: convert(float()); break;
       case float64: convert(double()); break;
-      default: malformed("chunk " + name + " does not hold numbers (type " + std::to_string(e.type) + ")");
+      default:
+        malformed("chunk " + name + " does not hold numbers (type " + std::to_string(e.type) + ")");
     }
     return out;
   }
@@ -105,7 +107,8 @@ class GsdFile {
   // The rows of a chunk of characters, each a zero-terminated string.
   std::vector<std::string> strings(const IndexEntry& e, const std::string& name) const {
     if (e.type != int8 && e.type != uint8 && e.type != character)
-      malformed("chunk " + name + " does not hold characters (type " + std::to_string(e.type) + ")");
+      malformed("chunk " + name + " does not hold characters (type " + std::to_string(e.type) +
+                ")");
     const std::vector<unsigned char> raw = bytes(e, name);
     std::vector<std::string> rows;
     for (std::uint64_t r = 0; r < e.n; ++r) {
@@ -137,9 +140,11 @@ class GsdFile {
     // (Overflow-safe: a chunk larger than the file is refused.)
     if (e.m != 0 && e.n > size_ / e.m / element)
       malformed("truncated or corrupt: chunk " + name + " of frame " + std::to_string(e.frame) +
-                " (" + std::to_string(e.n) + "x" + std::to_string(e.m) + ") is larger than the file");
+                " (" + std::to_string(e.n) + "x" + std::to_string(e.m) +
+                ") is larger than the file");
     const std::uint64_t count = e.n * e.m * element;
-    if (e.location < 0 || std::uint64_t(e.location) > size_ || count > size_ - std::uint64_t(e.location))
+    if (e.location < 0 || std::uint64_t(e.location) > size_ ||
+        count > size_ - std::uint64_t(e.location))
       malformed("truncated: chunk " + name + " of frame " + std::to_string(e.frame) +
                 " ends beyond the file (" + std::to_string(size_) + " bytes)");
     std::vector<unsigned char> raw(count);
@@ -162,7 +167,8 @@ class GsdFile {
       const ssize_t got = pread(descriptor_, p, count, off_t(offset));
       if (got < 0 && errno == EINTR) continue;
       if (got < 0) fail_io();
-      if (got == 0) malformed("truncated: a block at byte " + std::to_string(offset) + " ends beyond the file");
+      if (got == 0)
+        malformed("truncated: a block at byte " + std::to_string(offset) + " ends beyond the file");
       p += got;
       offset += std::uint64_t(got);
       count -= std::size_t(got);
@@ -189,7 +195,8 @@ class GsdFile {
         h.index_location > size_ - h.index_allocated_entries * sizeof(IndexEntry))
       malformed("truncated or corrupt: the index lies beyond the file");
     index_.resize(h.index_allocated_entries);
-    if (!index_.empty()) read_at(h.index_location, index_.data(), index_.size() * sizeof(IndexEntry));
+    if (!index_.empty())
+      read_at(h.index_location, index_.data(), index_.size() * sizeof(IndexEntry));
     // The first entry at location 0 ends the list.
     std::size_t used = 0;
     while (used < index_.size() && index_[used].location != 0) ++used;
@@ -231,9 +238,11 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   const std::string where = "frame " + std::to_string(f);
 
   std::uint64_t n = 0;
-  if (const IndexEntry* e = file.find(f, "particles/N") ? file.find(f, "particles/N") : file.find(0, "particles/N"))
+  if (const IndexEntry* e =
+          file.find(f, "particles/N") ? file.find(f, "particles/N") : file.find(0, "particles/N"))
     n = file.numbers<std::uint64_t>(*e, "particles/N", 1, 1)[0];
-  if (n >= (std::uint64_t(1) << 31)) file.malformed(where + ": " + std::to_string(n) + " particles, more than 2^31 - 1");
+  if (n >= (std::uint64_t(1) << 31))
+    file.malformed(where + ": " + std::to_string(n) + " particles, more than 2^31 - 1");
 
   std::vector<double> box = {1, 1, 1, 0, 0, 0};
   if (const IndexEntry* e = chunk(file, f, "configuration/box", 6))
@@ -242,7 +251,8 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   if (const IndexEntry* e = chunk(file, f, "configuration/dimensions", 1))
     dimensions = file.numbers<unsigned>(*e, "configuration/dimensions", 1, 1)[0];
   if (dimensions != 2 && dimensions != 3)
-    file.malformed(where + ": configuration/dimensions is " + std::to_string(dimensions) + ", not 2 or 3");
+    file.malformed(where + ": configuration/dimensions is " + std::to_string(dimensions) +
+                   ", not 2 or 3");
   try {
     scene.box = dimensions == 2 ? Box::two_dimensional_box(box[0], box[1], box[3])
                                 : Box::triclinic(box[0], box[1], box[2], box[3], box[4], box[5]);
@@ -287,41 +297,47 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   detail::ParallelErrors errors;
   const std::int64_t signed_n = std::int64_t(n);
 #pragma omp parallel for schedule(static)
-  for (std::int64_t signed_i = 0; signed_i < signed_n; ++signed_i) errors.run([&] {
-    const std::size_t i = std::size_t(signed_i);
-    if (type_id[i] >= types)
-      file.malformed(where + ": particle " + std::to_string(i) + " has typeid " +
-                     std::to_string(type_id[i]) + ", but there are " + std::to_string(types) + " types");
-    const detail::ShapeAxes& shape = shapes[type_id[i]];
-    const std::array<double, 4> q = orientation.empty()
-                                        ? std::array<double, 4>{1, 0, 0, 0}
-                                        : std::array<double, 4>{orientation[4 * i], orientation[4 * i + 1],
-                                                                orientation[4 * i + 2], orientation[4 * i + 3]};
-    try {
-      if (dimensions == 2) {
-        // The angle of the body's x axis in the plane, from the rotation,
-        // which must be about z (x, y = 0 up to the file's float32
-        // rounding), as must the centre lie in the plane.
-        const double w = q[0], x = q[1], y = q[2], z = q[3], norm = w * w + x * x + y * y + z * z;
-        if (!(norm > 0) || !std::isfinite(norm))
-          throw std::invalid_argument("its orientation is zero or not finite");
-        if (x * x + y * y > 1e-12 * norm)
-          throw std::invalid_argument("a two-dimensional scene, but its orientation (" + std::to_string(w) +
-                                      ", " + std::to_string(x) + ", " + std::to_string(y) + ", " +
-                                      std::to_string(z) + ") is not a rotation about z");
-        if (position[3 * i + 2] != 0)
-          throw std::invalid_argument("a two-dimensional scene, but its z is " +
-                                      std::to_string(position[3 * i + 2]) + ", not 0");
-        const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
-        scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0], shape.a[1], theta);
-      } else {
-        scene.particles.set_typed(i, {position[3 * i], position[3 * i + 1], position[3 * i + 2]},
-                                  type_id[i], q);
+  for (std::int64_t signed_i = 0; signed_i < signed_n; ++signed_i)
+    errors.run([&] {
+      const std::size_t i = std::size_t(signed_i);
+      if (type_id[i] >= types)
+        file.malformed(where + ": particle " + std::to_string(i) + " has typeid " +
+                       std::to_string(type_id[i]) + ", but there are " + std::to_string(types) +
+                       " types");
+      const detail::ShapeAxes& shape = shapes[type_id[i]];
+      const std::array<double, 4> q =
+          orientation.empty()
+              ? std::array<double, 4>{1, 0, 0, 0}
+              : std::array<double, 4>{orientation[4 * i], orientation[4 * i + 1],
+                                      orientation[4 * i + 2], orientation[4 * i + 3]};
+      try {
+        if (dimensions == 2) {
+          // The angle of the body's x axis in the plane, from the rotation,
+          // which must be about z (x, y = 0 up to the file's float32
+          // rounding), as must the centre lie in the plane.
+          const double w = q[0], x = q[1], y = q[2], z = q[3], norm = w * w + x * x + y * y + z * z;
+          if (!(norm > 0) || !std::isfinite(norm))
+            throw std::invalid_argument("its orientation is zero or not finite");
+          if (x * x + y * y > 1e-12 * norm)
+            throw std::invalid_argument("a two-dimensional scene, but its orientation (" +
+                                        std::to_string(w) + ", " + std::to_string(x) + ", " +
+                                        std::to_string(y) + ", " + std::to_string(z) +
+                                        ") is not a rotation about z");
+          if (position[3 * i + 2] != 0)
+            throw std::invalid_argument("a two-dimensional scene, but its z is " +
+                                        std::to_string(position[3 * i + 2]) + ", not 0");
+          const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
+          scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0],
+                                      shape.a[1], theta);
+        } else {
+          scene.particles.set_typed(i, {position[3 * i], position[3 * i + 1], position[3 * i + 2]},
+                                    type_id[i], q);
+        }
+      } catch (const std::invalid_argument& e) {
+        file.malformed(where + ": particle " + std::to_string(i) + ": " +
+                       detail::store_message(e, i));
       }
-    } catch (const std::invalid_argument& e) {
-      file.malformed(where + ": particle " + std::to_string(i) + ": " + detail::store_message(e, i));
-    }
-  });
+    });
   errors.rethrow_if_failed();
   scene.type_id = std::move(type_id);
   return scene;
@@ -354,8 +370,9 @@ void write_gsd_frame_with_values(const std::string& input, std::int64_t frame,
   if (scene.frame != 0)
     for (const IndexEntry* e : file.entries(0)) {
       const std::string chunk_name = file.name_of(e->id);
-      const bool per_particle = chunk_name.rfind("particles/", 0) == 0 && chunk_name != "particles/N" &&
-                                chunk_name != "particles/types" && chunk_name != "particles/type_shapes";
+      const bool per_particle = chunk_name.rfind("particles/", 0) == 0 &&
+                                chunk_name != "particles/N" && chunk_name != "particles/types" &&
+                                chunk_name != "particles/type_shapes";
       if (!per_particle || e->n == n) copy(*e, chunk_name);
     }
   if (n > 0) writer.write(log_name, values, n);

@@ -43,15 +43,32 @@ constexpr std::uint64_t gsd_magic = 0x65DF65DF65DF65DFull;
 constexpr std::size_t name_segment = 64;
 
 enum ChunkType : std::uint8_t {
-  uint8 = 1, uint16, uint32, uint64, int8, int16, int32, int64, float32, float64, character
+  uint8 = 1,
+  uint16,
+  uint32,
+  uint64,
+  int8,
+  int16,
+  int32,
+  int64,
+  float32,
+  float64,
+  character
 };
 
 inline std::size_t size_of(std::uint8_t type) {
   switch (type) {
-    case uint8: case int8: case character: return 1;
-    case uint16: case int16: return 2;
-    case uint32: case int32: case float32: return 4;
-    case uint64: case int64: case float64: return 8;
+    case uint8:
+    case int8:
+    case character: return 1;
+    case uint16:
+    case int16: return 2;
+    case uint32:
+    case int32:
+    case float32: return 4;
+    case uint64:
+    case int64:
+    case float64: return 8;
     default: return 0;
   }
 }

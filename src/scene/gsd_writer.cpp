@@ -45,7 +45,8 @@ void GsdWriter::write_raw(const std::string& name, std::uint8_t type, std::uint6
                           std::uint64_t count, const void* data) {
   if (finished_) throw std::invalid_argument("GsdWriter: " + name + " written after finish()");
   if (name.empty() || name.size() >= name_segment)
-    throw std::invalid_argument("GsdWriter: a chunk name must have 1 to 63 characters, not '" + name + "'");
+    throw std::invalid_argument("GsdWriter: a chunk name must have 1 to 63 characters, not '" +
+                                name + "'");
   if (rows == 0 || count % rows != 0 || count / rows > 0xffffffffu)
     throw std::invalid_argument("GsdWriter: " + name + ": " + std::to_string(count) +
                                 " values are not " + std::to_string(rows) + " rows");
@@ -56,7 +57,8 @@ void GsdWriter::write_raw(const std::string& name, std::uint8_t type, std::uint6
   }
   for (const Entry& e : index_)
     if (e.frame == frame_ && e.id == id->second)
-      throw std::invalid_argument("GsdWriter: " + name + " written twice in frame " + std::to_string(frame_));
+      throw std::invalid_argument("GsdWriter: " + name + " written twice in frame " +
+                                  std::to_string(frame_));
   const std::uint64_t bytes = count * size_of(type);
   out_.write(static_cast<const char*>(data), std::streamsize(bytes));
   if (!out_) throw std::runtime_error("GsdWriter: cannot write chunk " + name);
@@ -64,10 +66,12 @@ void GsdWriter::write_raw(const std::string& name, std::uint8_t type, std::uint6
   end_ += std::int64_t(bytes);
 }
 
-void GsdWriter::write(const std::string& name, const std::vector<float>& values, std::uint64_t rows) {
+void GsdWriter::write(const std::string& name, const std::vector<float>& values,
+                      std::uint64_t rows) {
   write_raw(name, float32, rows, values.size(), values.data());
 }
-void GsdWriter::write(const std::string& name, const std::vector<double>& values, std::uint64_t rows) {
+void GsdWriter::write(const std::string& name, const std::vector<double>& values,
+                      std::uint64_t rows) {
   write_raw(name, float64, rows, values.size(), values.data());
 }
 void GsdWriter::write(const std::string& name, const std::vector<std::uint32_t>& values,
@@ -85,7 +89,8 @@ void GsdWriter::write(const std::string& name, const std::vector<std::string>& r
   std::vector<char> table(rows.size() * width, 0);
   for (std::size_t r = 0; r < rows.size(); ++r) {
     if (std::memchr(rows[r].data(), 0, rows[r].size()))
-      throw std::invalid_argument("GsdWriter: " + name + ": row " + std::to_string(r) + " holds a zero byte");
+      throw std::invalid_argument("GsdWriter: " + name + ": row " + std::to_string(r) +
+                                  " holds a zero byte");
     std::memcpy(&table[r * width], rows[r].data(), rows[r].size());
   }
   write_raw(name, int8, rows.size(), table.size(), table.data());
@@ -94,7 +99,8 @@ void GsdWriter::write(const std::string& name, const std::vector<std::string>& r
 void GsdWriter::write_chunk(const std::string& name, std::uint8_t type, std::uint64_t rows,
                             std::uint32_t columns, const void* data) {
   if (size_of(type) == 0)
-    throw std::invalid_argument("GsdWriter: " + name + ": " + std::to_string(type) + " is not a GSD type code");
+    throw std::invalid_argument("GsdWriter: " + name + ": " + std::to_string(type) +
+                                " is not a GSD type code");
   if (columns == 0 || rows > std::uint64_t(-1) / columns)
     throw std::invalid_argument("GsdWriter: " + name + ": " + std::to_string(rows) + " x " +
                                 std::to_string(columns) + " elements");
@@ -119,7 +125,8 @@ void GsdWriter::finish() {
   names.push_back('\0');  // the empty name that ends the list
   const std::size_t segments = (names.size() + name_segment - 1) / name_segment;
   names.resize(segments * name_segment, '\0');
-  const std::int64_t namelist_location = index_location + std::int64_t(index_.size() * sizeof(IndexEntry));
+  const std::int64_t namelist_location =
+      index_location + std::int64_t(index_.size() * sizeof(IndexEntry));
   out_.write(names.data(), std::streamsize(names.size()));
   const Header h = header_of(std::uint64_t(index_location), index_.size(),
                              std::uint64_t(namelist_location), segments);

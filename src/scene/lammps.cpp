@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
-#include <initializer_list>
 #include <cmath>
 #include <fstream>
+#include <initializer_list>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -32,7 +32,8 @@ class Lines {
     }
     ++number_;
     if (const std::size_t hash = line.find('#'); hash != std::string::npos) line.resize(hash);
-    while (!line.empty() && (line.back() == ' ' || line.back() == '\t' || line.back() == '\r')) line.pop_back();
+    while (!line.empty() && (line.back() == ' ' || line.back() == '\t' || line.back() == '\r'))
+      line.pop_back();
     return true;
   }
   std::size_t number() const { return number_; }
@@ -102,7 +103,8 @@ Scene store(std::vector<Atom>& atoms, const Box& box, std::uint32_t types, const
   for (std::size_t i = 0; i < atoms.size(); ++i) {
     const Atom& a = atoms[i];
     try {
-      scene.particles.set_axes(i, a.position, {a.diameters[0] / 2, a.diameters[1] / 2, a.diameters[2] / 2},
+      scene.particles.set_axes(i, a.position,
+                               {a.diameters[0] / 2, a.diameters[1] / 2, a.diameters[2] / 2},
                                a.quaternion);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ":" + std::to_string(a.line) + where + ": atom " +
@@ -128,8 +130,10 @@ Scene read_lammps_data(const std::string& path) {
   while (lines.next(line) && !starts_section(line)) {
     const std::vector<std::string_view> w = words(line);
     if (w.empty()) continue;
-    if (w.size() == 2 && w[1] == "atoms") atoms_count = whole(w[0], lines, "the atom count");
-    else if (w.size() == 2 && w[1] == "ellipsoids") ellipsoids_count = whole(w[0], lines, "the ellipsoid count");
+    if (w.size() == 2 && w[1] == "atoms")
+      atoms_count = whole(w[0], lines, "the atom count");
+    else if (w.size() == 2 && w[1] == "ellipsoids")
+      ellipsoids_count = whole(w[0], lines, "the ellipsoid count");
     else if (w.size() == 3 && w[1] == "atom" && w[2] == "types")
       types = std::uint32_t(whole(w[0], lines, "the atom type count"));
     else if (w.size() == 6 && w[3] == "xy" && w[4] == "xz" && w[5] == "yz")
@@ -145,7 +149,8 @@ Scene read_lammps_data(const std::string& path) {
       }
   }
   for (int k = 0; k < 3; ++k)
-    if (!have[k]) lines.fail(std::string("the header gives no ") + "xyz"[k] + "lo " + "xyz"[k] + "hi line");
+    if (!have[k])
+      lines.fail(std::string("the header gives no ") + "xyz"[k] + "lo " + "xyz"[k] + "hi line");
   Box box;
   try {
     box = Box::from_lammps(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], tilt[0], tilt[1], tilt[2]);
@@ -167,30 +172,40 @@ Scene read_lammps_data(const std::string& path) {
       if (w.empty()) continue;
       if (atoms_section) {
         if (w.size() != 7 && w.size() != 10)
-          lines.fail("an Atoms line of atom_style ellipsoid has 7 or 10 fields (id type "
-                     "ellipsoidflag density x y z [ix iy iz]), this one " + std::to_string(w.size()));
+          lines.fail(
+              "an Atoms line of atom_style ellipsoid has 7 or 10 fields (id type "
+              "ellipsoidflag density x y z [ix iy iz]), this one " +
+              std::to_string(w.size()));
         Atom a{};
         a.id = whole(w[0], lines, "the atom id");
         a.type = std::uint32_t(whole(w[1], lines, "the atom type"));
         if (a.type < 1 || a.type > types)
-          lines.fail("atom type " + std::to_string(a.type) + " is not one of the " + std::to_string(types));
+          lines.fail("atom type " + std::to_string(a.type) + " is not one of the " +
+                     std::to_string(types));
         if (whole(w[2], lines, "the ellipsoid flag") == 0)
-          lines.fail("atom " + std::to_string(a.id) + " has ellipsoidflag 0: a point particle, no shape");
-        for (int k = 0; k < 3; ++k) a.position[k] = number(w[std::size_t(4 + k)], lines, "a coordinate");
+          lines.fail("atom " + std::to_string(a.id) +
+                     " has ellipsoidflag 0: a point particle, no shape");
+        for (int k = 0; k < 3; ++k)
+          a.position[k] = number(w[std::size_t(4 + k)], lines, "a coordinate");
         if (!by_id.emplace(a.id, atoms.size()).second)
           lines.fail("atom id " + std::to_string(a.id) + " appears twice");
         atoms.push_back(a);
       } else if (ellipsoids_section) {
         if (w.size() != 8)
-          lines.fail("an Ellipsoids line has 8 fields (id shapex shapey shapez quatw quati quatj "
-                     "quatk), this one " + std::to_string(w.size()));
+          lines.fail(
+              "an Ellipsoids line has 8 fields (id shapex shapey shapez quatw quati quatj "
+              "quatk), this one " +
+              std::to_string(w.size()));
         const std::uint64_t id = whole(w[0], lines, "the atom id");
         const auto found = by_id.find(id);
         if (found == by_id.end())
-          lines.fail("ellipsoid of atom " + std::to_string(id) + ", which the Atoms section has not listed");
+          lines.fail("ellipsoid of atom " + std::to_string(id) +
+                     ", which the Atoms section has not listed");
         Atom& a = atoms[found->second];
-        for (int k = 0; k < 3; ++k) a.diameters[k] = number(w[std::size_t(1 + k)], lines, "a shape");
-        for (int k = 0; k < 4; ++k) a.quaternion[k] = number(w[std::size_t(4 + k)], lines, "a quaternion component");
+        for (int k = 0; k < 3; ++k)
+          a.diameters[k] = number(w[std::size_t(1 + k)], lines, "a shape");
+        for (int k = 0; k < 4; ++k)
+          a.quaternion[k] = number(w[std::size_t(4 + k)], lines, "a quaternion component");
         a.line = lines.number();
         ++shaped;
       }
@@ -224,7 +239,8 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   if (count == 0) throw std::invalid_argument(path + ": no ITEM: TIMESTEP: not a LAMMPS dump");
   if (frame < -count || frame >= count)
     throw std::invalid_argument(path + ": frame " + std::to_string(frame) +
-                                " is not in the file (it has " + std::to_string(count) + " frames)");
+                                " is not in the file (it has " + std::to_string(count) +
+                                " frames)");
   const std::size_t f = std::size_t(frame < 0 ? count + frame : frame);
   Lines lines(path);
   lines.stream().seekg(starts[f]);
@@ -291,7 +307,8 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   auto column = [&](const std::string& given, std::initializer_list<const char*> usual,
                     const char* what) -> std::size_t {
     std::vector<std::string> candidates;
-    if (!given.empty()) candidates.push_back(given);
+    if (!given.empty())
+      candidates.push_back(given);
     else
       for (const char* u : usual) candidates.emplace_back(u);
     for (const std::string& c : candidates)
@@ -302,7 +319,8 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
     lines.fail(std::string("no column ") + listed + " (" + what + ") in ITEM: ATOMS");
   };
   const char* axes[3] = {"x", "y", "z"};
-  std::size_t position[3], shape[3], quaternion[4], id_column = names.size(), type_column = names.size();
+  std::size_t position[3], shape[3], quaternion[4], id_column = names.size(),
+                                                    type_column = names.size();
   for (int k = 0; k < 3; ++k) {
     const std::string wrapped = axes[k], unwrapped = std::string(axes[k]) + "u";
     position[k] = column(columns.position[k], {wrapped.c_str(), unwrapped.c_str()}, "a position");
@@ -320,20 +338,24 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   atoms.reserve(atoms_count);
   std::uint32_t types = 1;
   for (std::uint64_t n = 0; n < atoms_count; ++n) {
-    if (!lines.next(line)) lines.fail("the frame ends after " + std::to_string(n) + " of its " +
-                                      std::to_string(atoms_count) + " atoms");
+    if (!lines.next(line))
+      lines.fail("the frame ends after " + std::to_string(n) + " of its " +
+                 std::to_string(atoms_count) + " atoms");
     const auto w = words(line);
     if (w.size() != names.size())
-      lines.fail("expected " + std::to_string(names.size()) + " columns, found " + std::to_string(w.size()));
+      lines.fail("expected " + std::to_string(names.size()) + " columns, found " +
+                 std::to_string(w.size()));
     Atom a{};
     a.id = id_column < w.size() ? whole(w[id_column], lines, "the atom id") : n + 1;
-    a.type = type_column < w.size() ? std::uint32_t(whole(w[type_column], lines, "the atom type")) : 1;
+    a.type =
+        type_column < w.size() ? std::uint32_t(whole(w[type_column], lines, "the atom type")) : 1;
     types = std::max(types, a.type);
     for (int k = 0; k < 3; ++k) {
       a.position[k] = number(w[position[k]], lines, "a coordinate");
       a.diameters[k] = number(w[shape[k]], lines, "a shape");
     }
-    for (int k = 0; k < 4; ++k) a.quaternion[k] = number(w[quaternion[k]], lines, "a quaternion component");
+    for (int k = 0; k < 4; ++k)
+      a.quaternion[k] = number(w[quaternion[k]], lines, "a quaternion component");
     a.line = lines.number();
     atoms.push_back(a);
   }

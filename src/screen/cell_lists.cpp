@@ -88,8 +88,10 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     low[k] = std::numeric_limits<double>::infinity();
     high[k] = -low[k];
   }
-#pragma omp parallel for num_threads(threads) reduction(max : largest, inscribed_high, type_high) \
-    reduction(min : smallest, inscribed_low, type_low)
+#pragma omp parallel for num_threads(threads) reduction(max                                   \
+                                                        : largest, inscribed_high, type_high) \
+    reduction(min                                                                             \
+              : smallest, inscribed_low, type_low)
   for (std::size_t i = 0; i < n; ++i) {
     largest = std::max(largest, bounding[i]);
     smallest = std::min(smallest, bounding[i]);
@@ -102,8 +104,9 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   // type's radii to the bit), else inferred from the radii. One reach for
   // every pair.
   lists.one_type = type_low == type_high && type_low != ParticleStore::untyped;
-  lists.identical_shapes = lists.one_type || (largest - smallest <= 1e-12 * largest &&
-                                              inscribed_high - inscribed_low <= 1e-12 * inscribed_high);
+  lists.identical_shapes =
+      lists.one_type || (largest - smallest <= 1e-12 * largest &&
+                         inscribed_high - inscribed_low <= 1e-12 * inscribed_high);
   for (int k = 0; k < 3; ++k) {
     if (geometry.periodic[k]) continue;  // (only open axes need the extent)
     const std::vector<double>& c = particles.centre(k);
@@ -158,8 +161,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
       for (int k = 0; k < 3; ++k) {
         const bool periodic = geometry.periodic[k];
         const double extent = periodic ? geometry.width[k] : high[k] - low[k];
-        double cells = periodic ? std::max(1.0, std::floor(extent / side))
-                                : std::floor(extent / side) + 1;
+        double cells =
+            periodic ? std::max(1.0, std::floor(extent / side)) : std::floor(extent / side) + 1;
         if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
         grid.cells[k] = int(cells);
         grid.inverse_side[k] = periodic ? grid.cells[k] / extent : 1 / side;
@@ -203,9 +206,9 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     next[g].assign(lists.grids[g].cell_start.begin(), lists.grids[g].cell_start.end() - 1);
   // cell[i] becomes particle i's place among its class's members.
   for (std::size_t i = 0; i < n; ++i) cell[i] = next[size_class[i]][cell[i]]++;
-  // The copies in cell order, read in particle order (streaming reads,
-  // scattered writes of three cache lines per particle: measured faster than
-  // gathering them in cell order).
+    // The copies in cell order, read in particle order (streaming reads,
+    // scattered writes of three cache lines per particle: measured faster than
+    // gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     ClassGrid& grid = lists.grids[size_class[i]];

@@ -69,7 +69,7 @@ struct alignas(64) Member {
 // of a run of cells along z (the search streams through rows of cells
 // instead of jumping across the particle arrays).
 struct ClassGrid {
-  int span = 1;       // cells per reach: a member's partners lie within span cells along every axis
+  int span = 1;  // cells per reach: a member's partners lie within span cells along every axis
   std::array<int, 3> cells = {1, 1, 1};
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
   std::vector<std::uint32_t> cell_start;           // cells + 1 offsets into the members
@@ -90,14 +90,14 @@ struct ClassGrid {
 // reach hold every partner within one cell, whatever the tilts.
 struct BoxGeometry {
   std::array<bool, 3> periodic = {false, false, false};
-  bool triclinic = false;             // periodic with a tilt
-  double h[3][3] = {};                // lattice vectors as columns (periodic axes)
-  std::array<double, 3> width = {};   // perpendicular widths (periodic axes)
+  bool triclinic = false;            // periodic with a tilt
+  double h[3][3] = {};               // lattice vectors as columns (periodic axes)
+  std::array<double, 3> width = {};  // perpendicular widths (periodic axes)
 
   BoxGeometry() = default;
   explicit BoxGeometry(const Box& box);
 
-  double inverse_diagonal[3] = {};     // 1 / h[k][k] (periodic axes)
+  double inverse_diagonal[3] = {};  // 1 / h[k][k] (periodic axes)
 
   // h^-1 x (upper triangular: back substitution), periodic axes only. By
   // the reciprocals of the diagonal rather than divisions (three dependent
@@ -186,7 +186,8 @@ struct CellLists {
     if (geometry.triclinic) {
       double s[3];
       geometry.fractional(w, s);
-      for (int k = 0; k < 3; ++k) u[k] = geometry.periodic[k] ? s[k] * geometry.width[k] : w[k] - origin[k];
+      for (int k = 0; k < 3; ++k)
+        u[k] = geometry.periodic[k] ? s[k] * geometry.width[k] : w[k] - origin[k];
       return;
     }
     for (int k = 0; k < 3; ++k) u[k] = geometry.periodic[k] ? w[k] : w[k] - origin[k];
@@ -199,7 +200,8 @@ struct CellLists {
       double s[3];
       geometry.fractional(x, s);
       for (int k = 0; k < 3; ++k)
-        u[k] = geometry.periodic[k] ? BoxGeometry::fraction_of(s[k]) * geometry.width[k] : x[k] - origin[k];
+        u[k] = geometry.periodic[k] ? BoxGeometry::fraction_of(s[k]) * geometry.width[k]
+                                    : x[k] - origin[k];
       return;
     }
     double w[3];
@@ -303,76 +305,80 @@ void search_candidates(const CellLists& lists, int threads,
     for (std::size_t own = 0; own < lists.grids.size(); ++own) {
       const ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
-      for (std::size_t at = 0; at < home.size(); ++at) errors.run([&] {
-        if (progress && thread == 0 && at % 16384 == 0)
-          progress((double(done_before[own]) + double(at)) / double(total));
-        const Member& i = home.member[at];
-        c.i = &i;
-        const CoarseMember& coarse_i = home.coarse[at];
-        const double reach_i = coarse_i.reach + lists.slack;
-        double u_i[3];  // i's cell-space coordinates
-        lists.cell_space(coarse_i.wrapped, u_i);
-        // Classes of radii at least as large as i's (indices 0 .. own).
-        for (std::size_t g = 0; g <= own; ++g) {
-          const ClassGrid& grid = lists.grids[g];
-          const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0], grid.span),
-                                    neighbour_runs(lists, grid, 1, u_i[1], grid.span),
-                                    neighbour_runs(lists, grid, 2, u_i[2], grid.span)};
-          const bool nearest_image =
-              runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
-          // The members of one run of cells along z: contiguous.
-          // (nearest_image and one_reach compile-time constants: the common
-          // cases keep a tight loop.)
-          auto visit_run = [&](auto nearest_image, auto one_reach, std::uint32_t begin,
-                               std::uint32_t end, const int (&shift)[3]) {
-            if (g == own) begin = std::max(begin, std::uint32_t(at + 1));
-            if (begin >= end) return;
-            compared += end - begin;
-            double image[3];  // the run's image shift, sum_k shift[k] a_k
-            geometry.shift_vector(shift, image);
-            double origin[3];  // i's wrapped position seen from the members' images
-            for (int k = 0; k < 3; ++k) origin[k] = coarse_i.wrapped[k] - image[k];
-            const CoarseMember* coarse = grid.coarse.data();
-            for (std::uint32_t m = begin; m < end; ++m) {
-              if (coarse_filter) {
-                double d[3] = {coarse[m].wrapped[0] - origin[0], coarse[m].wrapped[1] - origin[1],
-                               coarse[m].wrapped[2] - origin[2]};
-                if (nearest_image) geometry.minimum_image(d);
-                const double limit = one_reach ? reach_i + lists.largest_reach
-                                               : reach_i + coarse[m].reach;
-                if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
-              }
-              ++passed;
-              const Member& j = grid.member[m];
-              c.j = &j;
-              for (int k = 0; k < 3; ++k) {
-                c.r[k] = j.position[k] - i.position[k];
-                if (image[k] != 0) c.r[k] += image[k];
-              }
-              if (nearest_image) geometry.minimum_image(c.r);
-              on_candidate(thread, c);
-            }
-          };
-          const std::size_t ny = std::size_t(grid.cells[1]), nz = std::size_t(grid.cells[2]);
-          for (int ra = 0; ra < runs[0].count; ++ra)
-            for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
-              for (int rb = 0; rb < runs[1].count; ++rb)
-                for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b) {
-                  const std::size_t row = (std::size_t(a) * ny + std::size_t(b)) * nz;
-                  for (int rc = 0; rc < runs[2].count; ++rc) {
-                    const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb], runs[2].shift[rc]};
-                    const std::uint32_t begin = grid.cell_start[row + std::size_t(runs[2].first[rc])];
-                    const std::uint32_t end = grid.cell_start[row + std::size_t(runs[2].last[rc]) + 1];
-                    if (nearest_image)
-                      visit_run(std::true_type(), std::false_type(), begin, end, shift);
-                    else if (lists.identical_shapes)
-                      visit_run(std::false_type(), std::true_type(), begin, end, shift);
-                    else
-                      visit_run(std::false_type(), std::false_type(), begin, end, shift);
-                  }
+      for (std::size_t at = 0; at < home.size(); ++at)
+        errors.run([&] {
+          if (progress && thread == 0 && at % 16384 == 0)
+            progress((double(done_before[own]) + double(at)) / double(total));
+          const Member& i = home.member[at];
+          c.i = &i;
+          const CoarseMember& coarse_i = home.coarse[at];
+          const double reach_i = coarse_i.reach + lists.slack;
+          double u_i[3];  // i's cell-space coordinates
+          lists.cell_space(coarse_i.wrapped, u_i);
+          // Classes of radii at least as large as i's (indices 0 .. own).
+          for (std::size_t g = 0; g <= own; ++g) {
+            const ClassGrid& grid = lists.grids[g];
+            const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0], grid.span),
+                                      neighbour_runs(lists, grid, 1, u_i[1], grid.span),
+                                      neighbour_runs(lists, grid, 2, u_i[2], grid.span)};
+            const bool nearest_image =
+                runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
+            // The members of one run of cells along z: contiguous.
+            // (nearest_image and one_reach compile-time constants: the common
+            // cases keep a tight loop.)
+            auto visit_run = [&](auto nearest_image, auto one_reach, std::uint32_t begin,
+                                 std::uint32_t end, const int(&shift)[3]) {
+              if (g == own) begin = std::max(begin, std::uint32_t(at + 1));
+              if (begin >= end) return;
+              compared += end - begin;
+              double image[3];  // the run's image shift, sum_k shift[k] a_k
+              geometry.shift_vector(shift, image);
+              double origin[3];  // i's wrapped position seen from the members' images
+              for (int k = 0; k < 3; ++k) origin[k] = coarse_i.wrapped[k] - image[k];
+              const CoarseMember* coarse = grid.coarse.data();
+              for (std::uint32_t m = begin; m < end; ++m) {
+                if (coarse_filter) {
+                  double d[3] = {coarse[m].wrapped[0] - origin[0], coarse[m].wrapped[1] - origin[1],
+                                 coarse[m].wrapped[2] - origin[2]};
+                  if (nearest_image) geometry.minimum_image(d);
+                  const double limit =
+                      one_reach ? reach_i + lists.largest_reach : reach_i + coarse[m].reach;
+                  if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
                 }
-        }
-      });
+                ++passed;
+                const Member& j = grid.member[m];
+                c.j = &j;
+                for (int k = 0; k < 3; ++k) {
+                  c.r[k] = j.position[k] - i.position[k];
+                  if (image[k] != 0) c.r[k] += image[k];
+                }
+                if (nearest_image) geometry.minimum_image(c.r);
+                on_candidate(thread, c);
+              }
+            };
+            const std::size_t ny = std::size_t(grid.cells[1]), nz = std::size_t(grid.cells[2]);
+            for (int ra = 0; ra < runs[0].count; ++ra)
+              for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
+                for (int rb = 0; rb < runs[1].count; ++rb)
+                  for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b) {
+                    const std::size_t row = (std::size_t(a) * ny + std::size_t(b)) * nz;
+                    for (int rc = 0; rc < runs[2].count; ++rc) {
+                      const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb],
+                                            runs[2].shift[rc]};
+                      const std::uint32_t begin =
+                          grid.cell_start[row + std::size_t(runs[2].first[rc])];
+                      const std::uint32_t end =
+                          grid.cell_start[row + std::size_t(runs[2].last[rc]) + 1];
+                      if (nearest_image)
+                        visit_run(std::true_type(), std::false_type(), begin, end, shift);
+                      else if (lists.identical_shapes)
+                        visit_run(std::false_type(), std::true_type(), begin, end, shift);
+                      else
+                        visit_run(std::false_type(), std::false_type(), begin, end, shift);
+                    }
+                  }
+          }
+        });
     }
     errors.run([&] { done(thread, compared, passed); });
   }

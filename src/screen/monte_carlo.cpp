@@ -32,9 +32,7 @@ std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
   return z ^ (z >> 31);
 }
 
-double uniform01(std::mt19937_64& engine) {
-  return double(engine() >> 11) * 0x1.0p-53;
-}
+double uniform01(std::mt19937_64& engine) { return double(engine() >> 11) * 0x1.0p-53; }
 
 // q1 q2 (Hamilton product, (w, x, y, z)).
 std::array<double, 4> multiply(const std::array<double, 4>& a, const std::array<double, 4>& b) {
@@ -87,7 +85,8 @@ struct HardParticleMC::State {
   std::vector<std::array<double, 3>> centres() const {
     const ParticleStore& s = scene->particles();
     std::vector<std::array<double, 3>> c(s.size());
-    for (std::size_t i = 0; i < s.size(); ++i) c[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
+    for (std::size_t i = 0; i < s.size(); ++i)
+      c[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
     return c;
   }
 
@@ -108,9 +107,10 @@ HardParticleMC::HardParticleMC(const Box& box, std::vector<std::array<double, 3>
   if (!(options.packing > 0 && options.packing < 1))
     throw std::invalid_argument("HardParticleMC: the packing fraction must be in (0, 1), got " +
                                 std::to_string(options.packing));
-  if (!(options.translation > 0) || !std::isfinite(options.translation) || !(options.rotation >= 0) ||
-      !std::isfinite(options.rotation))
-    throw std::invalid_argument("HardParticleMC: step sizes must be finite, the translation positive");
+  if (!(options.translation > 0) || !std::isfinite(options.translation) ||
+      !(options.rotation >= 0) || !std::isfinite(options.rotation))
+    throw std::invalid_argument(
+        "HardParticleMC: step sizes must be finite, the translation positive");
   if (options.threads < 0) throw std::invalid_argument("HardParticleMC: threads must be >= 0");
   State& s = *state_;
   s.box = box;
@@ -127,7 +127,8 @@ HardParticleMC::~HardParticleMC() = default;
 HardParticleMC::HardParticleMC(HardParticleMC&&) noexcept = default;
 HardParticleMC& HardParticleMC::operator=(HardParticleMC&&) noexcept = default;
 
-HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t seed, double max_aspect,
+HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t seed,
+                                                double max_aspect,
                                                 const HardParticleMCOptions& options,
                                                 std::size_t shapes) {
   if (n == 0) throw std::invalid_argument("HardParticleMC: no particles");
@@ -160,8 +161,8 @@ HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t see
   for (std::size_t i = 0; i < n; ++i)
     centre[i] = {spacing * (double(i % side) + 0.5), spacing * (double(i / side % side) + 0.5),
                  spacing * (double(i / (side * side)) + 0.5)};
-  return HardParticleMC(Box::periodic_box(length, length, length), std::move(centre), std::move(axes),
-                        std::move(orientation), options);
+  return HardParticleMC(Box::periodic_box(length, length, length), std::move(centre),
+                        std::move(axes), std::move(orientation), options);
 }
 
 SweepReport HardParticleMC::sweep() {
@@ -187,7 +188,8 @@ SweepReport HardParticleMC::sweep() {
   };
   auto domain_of = [&](const std::array<int, 3>& c) {
     return (std::size_t(domain_along(0, c[0])) * std::size_t(domains[1]) +
-            std::size_t(domain_along(1, c[1]))) * std::size_t(domains[2]) +
+            std::size_t(domain_along(1, c[1]))) *
+               std::size_t(domains[2]) +
            std::size_t(domain_along(2, c[2]));
   };
   const std::size_t domain_count = std::size_t(domains[0]) * domains[1] * domains[2];
@@ -255,31 +257,35 @@ SweepReport HardParticleMC::sweep() {
     std::size_t proposed = 0, accepted = 0, left = 0;
     detail::ParallelErrors errors;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 4) reduction(+ : proposed, accepted, left)
-    for (std::size_t k = 0; k < m; ++k) errors.run([&] {
-      const std::uint32_t d = active[k];
-      std::mt19937_64 engine(mix(sweep_seed, (std::uint64_t(colour) << 40) ^ d));
-      const std::size_t count = start_of[d + 1] - start_of[d];
-      for (std::size_t t = 0; t < count; ++t) {
-        ++proposed;
-        const std::uint32_t i = member[start_of[d] + std::size_t(uniform01(engine) * double(count))];
-        std::array<double, 3> centre = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
-        for (double& x : centre) x += s.translation * (2 * uniform01(engine) - 1);
-        const std::array<double, 4> q =
-            s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine) : s.orientation[i];
-        if (domain_of(scene.cell_of(centre)) != d) {
-          ++left;
-          continue;
+    for (std::size_t k = 0; k < m; ++k)
+      errors.run([&] {
+        const std::uint32_t d = active[k];
+        std::mt19937_64 engine(mix(sweep_seed, (std::uint64_t(colour) << 40) ^ d));
+        const std::size_t count = start_of[d + 1] - start_of[d];
+        for (std::size_t t = 0; t < count; ++t) {
+          ++proposed;
+          const std::uint32_t i =
+              member[start_of[d] + std::size_t(uniform01(engine) * double(count))];
+          std::array<double, 3> centre = {store.centre(0)[i], store.centre(1)[i],
+                                          store.centre(2)[i]};
+          for (double& x : centre) x += s.translation * (2 * uniform01(engine) - 1);
+          const std::array<double, 4> q =
+              s.rotation > 0 ? turned(s.orientation[i], s.rotation, engine) : s.orientation[i];
+          if (domain_of(scene.cell_of(centre)) != d) {
+            ++left;
+            continue;
+          }
+          const MovingScene::Particle trial =
+              ParticleStore::particle_axes(centre, s.semi_axes[i], q);
+          if (scene.overlaps(trial, i) != MovingScene::none) continue;
+          ++accepted;
+          if (!scene.move_in_own_cells(i, trial)) {
+            deferred[k] = {i, q, trial};
+            break;
+          }
+          s.orientation[i] = q;
         }
-        const MovingScene::Particle trial = ParticleStore::particle_axes(centre, s.semi_axes[i], q);
-        if (scene.overlaps(trial, i) != MovingScene::none) continue;
-        ++accepted;
-        if (!scene.move_in_own_cells(i, trial)) {
-          deferred[k] = {i, q, trial};
-          break;
-        }
-        s.orientation[i] = q;
-      }
-    });
+      });
     errors.rethrow_if_failed();
     for (const Deferred& move : deferred)
       if (move.trial) {
@@ -370,8 +376,12 @@ void HardParticleMC::compress_to_packing(
 
 const ParticleStore& HardParticleMC::particles() const { return state_->scene->particles(); }
 const Box& HardParticleMC::box() const { return state_->box; }
-const std::vector<std::array<double, 3>>& HardParticleMC::semi_axes() const { return state_->semi_axes; }
-const std::vector<std::array<double, 4>>& HardParticleMC::orientation() const { return state_->orientation; }
+const std::vector<std::array<double, 3>>& HardParticleMC::semi_axes() const {
+  return state_->semi_axes;
+}
+const std::vector<std::array<double, 4>>& HardParticleMC::orientation() const {
+  return state_->orientation;
+}
 double HardParticleMC::packing() const { return state_->volume / state_->box_volume(); }
 double HardParticleMC::translation() const { return state_->translation; }
 double HardParticleMC::rotation() const { return state_->rotation; }

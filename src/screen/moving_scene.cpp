@@ -65,16 +65,16 @@ struct MovingScene::Impl {
   ParticleStore store;
   Box box;
   MovingSceneOptions options;
-  screen::CellLists lists;  // the geometry, origin and slack; grids[0]: the cells (no members)
-  double grid_radius = 0;   // the bounding radius the cells are sized for
-  double side = 0;          // the narrowest cell, in cell space
-  std::size_t capacity = 0;  // slots per cell
-  std::vector<Slot> slots;                  // cells * capacity
-  std::vector<Detail> details;              // cells * capacity
-  std::vector<std::uint32_t> members;       // cells * capacity: particle indices
-  std::vector<std::uint32_t> count;         // per cell
-  std::vector<std::uint64_t> where;         // per particle: cell * capacity + slot
-  std::vector<std::uint8_t> outside;        // per particle (open axes): beyond the grid's region
+  screen::CellLists lists;      // the geometry, origin and slack; grids[0]: the cells (no members)
+  double grid_radius = 0;       // the bounding radius the cells are sized for
+  double side = 0;              // the narrowest cell, in cell space
+  std::size_t capacity = 0;     // slots per cell
+  std::vector<Slot> slots;      // cells * capacity
+  std::vector<Detail> details;  // cells * capacity
+  std::vector<std::uint32_t> members;  // cells * capacity: particle indices
+  std::vector<std::uint32_t> count;    // per cell
+  std::vector<std::uint64_t> where;    // per particle: cell * capacity + slot
+  std::vector<std::uint8_t> outside;   // per particle (open axes): beyond the grid's region
   std::size_t outside_count = 0;
   MovingSceneCounters counters;
   std::vector<std::uint32_t> stamp;  // per cell, for move_many's test of distinct cells
@@ -114,8 +114,8 @@ struct MovingScene::Impl {
         throw std::invalid_argument(
             std::string(who) + ": the periodic box is too small: its width " +
             std::to_string(widths[k]) + " across axis " + std::to_string(k) +
-            " is less than twice the reach cutoff * 2 R = " + std::to_string(reach) +
-            " (cutoff " + std::to_string(cutoff) + ", bounding radius " + std::to_string(radius) +
+            " is less than twice the reach cutoff * 2 R = " + std::to_string(reach) + " (cutoff " +
+            std::to_string(cutoff) + ", bounding radius " + std::to_string(radius) +
             "; the minimum image convention would miss pairs)");
   }
 
@@ -391,8 +391,10 @@ struct MovingScene::Impl {
     };
     // The trial's own cell first (its nearest particles, where an overlap
     // is most likely met), then the others.
-    const int own[3] = {lists.cell_of(g, 0, u[0]), lists.cell_of(g, 1, u[1]), lists.cell_of(g, 2, u[2])};
-    const std::size_t own_cell = (std::size_t(own[0]) * ny + std::size_t(own[1])) * nz + std::size_t(own[2]);
+    const int own[3] = {lists.cell_of(g, 0, u[0]), lists.cell_of(g, 1, u[1]),
+                        lists.cell_of(g, 2, u[2])};
+    const std::size_t own_cell =
+        (std::size_t(own[0]) * ny + std::size_t(own[1])) * nz + std::size_t(own[2]);
     if (!scan(own_cell, w)) return;
     for (int ra = 0; ra < runs[0].count; ++ra)
       for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
@@ -406,13 +408,13 @@ struct MovingScene::Impl {
               for (int k = 0; k < 3; ++k) origin[k] = w[k] - image[k];
               const bool unshifted = shift[0] == 0 && shift[1] == 0 && shift[2] == 0;
               for (int c = runs[2].first[rc]; c <= runs[2].last[rc]; ++c) {
-                const std::size_t cell = (std::size_t(a) * ny + std::size_t(b)) * nz + std::size_t(c);
+                const std::size_t cell =
+                    (std::size_t(a) * ny + std::size_t(b)) * nz + std::size_t(c);
                 if (unshifted && cell == own_cell) continue;
                 if (!scan(cell, origin)) return;
               }
             }
   }
-
 };
 
 namespace {
@@ -525,23 +527,25 @@ const Box& MovingScene::box() const noexcept { return impl_->box; }
 const MovingSceneCounters& MovingScene::counters() const noexcept { return impl_->counters; }
 
 MovingScene::Particle MovingScene::trial(const std::array<double, 3>& centre,
-                             const std::array<double, 6>& q) const {
+                                         const std::array<double, 6>& q) const {
   return ParticleStore::particle(centre, q);
 }
 MovingScene::Particle MovingScene::trial_axes(const std::array<double, 3>& centre,
-                                  const std::array<double, 3>& semi_axes,
-                                  const std::array<double, 4>& quaternion) const {
+                                              const std::array<double, 3>& semi_axes,
+                                              const std::array<double, 4>& quaternion) const {
   return ParticleStore::particle_axes(centre, semi_axes, quaternion);
 }
-MovingScene::Particle MovingScene::trial_typed(const std::array<double, 3>& centre, std::uint32_t type,
-                                   const std::array<double, 4>& quaternion) const {
+MovingScene::Particle MovingScene::trial_typed(const std::array<double, 3>& centre,
+                                               std::uint32_t type,
+                                               const std::array<double, 4>& quaternion) const {
   return impl_->store.particle_typed(centre, type, quaternion);
 }
 
 std::uint32_t MovingScene::insert(const Particle& p) {
   Impl& s = *impl_;
   const std::size_t i = s.store.size();
-  if (i + 1 >= (std::size_t(1) << 31)) throw std::invalid_argument("MovingScene::insert: at most 2^31 - 1 particles");
+  if (i + 1 >= (std::size_t(1) << 31))
+    throw std::invalid_argument("MovingScene::insert: at most 2^31 - 1 particles");
   s.check_particle(p, "MovingScene::insert");
   s.store.add_particle(p);
   s.where.push_back(0);
@@ -600,8 +604,8 @@ bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
   return true;
 }
 
-void MovingScene::move_many(const std::uint32_t* index, const Particle* particles, std::size_t count,
-                      int threads) {
+void MovingScene::move_many(const std::uint32_t* index, const Particle* particles,
+                            std::size_t count, int threads) {
   Impl& s = *impl_;
   for (std::size_t k = 0; k < count; ++k) {
     s.check_index(index[k], "MovingScene::move_many");
@@ -669,31 +673,27 @@ namespace {
 // Returns the decided answer (or none), with the undecided candidates
 // appended to `pending` when there is none.
 template <class Impl>
-std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial, std::uint32_t slot,
-                             std::int64_t exclude, Pending& pending) {
+std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial,
+                             std::uint32_t slot, std::int64_t exclude, Pending& pending) {
   const TrialSide t(trial);
   const std::size_t first_pending = pending.size();
   std::int64_t found = MovingScene::none;
-  s.for_each_near(trial, 1.0, exclude,
-                  [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
-                    double mu2 = 0;
-                    switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr, 1.0,
-                                                     false, mu2)) {
-                      case screen::NearPair::spheres:
-                      case screen::NearPair::same_form:
-                        if (!(mu2 < 1)) return true;
-                        [[fallthrough]];
-                      case screen::NearPair::in:
-                        found = i;
-                        return false;
-                      case screen::NearPair::out_by_projection:
-                        return true;
-                      case screen::NearPair::undecided:
-                        pending.add(slot, i, r, t.q, d.q);
-                        return true;
-                    }
-                    return true;
-                  });
+  s.for_each_near(
+      trial, 1.0, exclude,
+      [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
+        double mu2 = 0;
+        switch (
+            screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr, 1.0, false, mu2)) {
+          case screen::NearPair::spheres:
+          case screen::NearPair::same_form:
+            if (!(mu2 < 1)) return true;
+            [[fallthrough]];
+          case screen::NearPair::in: found = i; return false;
+          case screen::NearPair::out_by_projection: return true;
+          case screen::NearPair::undecided: pending.add(slot, i, r, t.q, d.q); return true;
+        }
+        return true;
+      });
   if (found != MovingScene::none) pending.truncate(first_pending);
   return found;
 }
@@ -724,34 +724,32 @@ std::size_t MovingScene::overlap_count(const Particle& trial, std::int64_t exclu
 std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutoff, bool with_mu2,
                                              std::int64_t exclude) const {
   const Impl& s = *impl_;
-  if (!(cutoff > 0) || !std::isfinite(cutoff) || !(cutoff * cutoff >= std::numeric_limits<double>::min()))
-    throw std::invalid_argument("MovingScene::neighbors: the cutoff must be positive and finite, got " +
-                                std::to_string(cutoff));
+  if (!(cutoff > 0) || !std::isfinite(cutoff) ||
+      !(cutoff * cutoff >= std::numeric_limits<double>::min()))
+    throw std::invalid_argument(
+        "MovingScene::neighbors: the cutoff must be positive and finite, got " +
+        std::to_string(cutoff));
   s.check_box(std::max(trial.bounding_radius(), s.grid_radius), cutoff, "MovingScene::neighbors");
   const TrialSide t(trial);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Neighbor> out;
   Pending pending(64);
-  s.for_each_near(trial, cutoff, exclude,
-                  [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
-                    double mu2 = 0;
-                    switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr,
-                                                     cutoff, with_mu2, mu2)) {
-                      case screen::NearPair::spheres:
-                      case screen::NearPair::same_form:
-                        if (mu2 < cutoff * cutoff) out.push_back({i, with_mu2 ? mu2 : nan});
-                        break;
-                      case screen::NearPair::in:
-                        out.push_back({i, nan});
-                        break;
-                      case screen::NearPair::out_by_projection:
-                        break;
-                      case screen::NearPair::undecided:
-                        pending.add(0, i, r, t.q, d.q);
-                        break;
-                    }
-                    return true;
-                  });
+  s.for_each_near(
+      trial, cutoff, exclude,
+      [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
+        double mu2 = 0;
+        switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr, cutoff,
+                                         with_mu2, mu2)) {
+          case screen::NearPair::spheres:
+          case screen::NearPair::same_form:
+            if (mu2 < cutoff * cutoff) out.push_back({i, with_mu2 ? mu2 : nan});
+            break;
+          case screen::NearPair::in: out.push_back({i, nan}); break;
+          case screen::NearPair::out_by_projection: break;
+          case screen::NearPair::undecided: pending.add(0, i, r, t.q, d.q); break;
+        }
+        return true;
+      });
   const std::size_t n = pending.size();
   if (n > 0) {
     const BatchOptions& options = s.solve_options;
@@ -761,9 +759,9 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
       contact_function_batch(pending.batch.view(), {mu2.data(), nullptr, status.data()}, options);
       for (std::size_t k = 0; k < n; ++k) {
         if (!is_valid(status[k]) && status[k] != Status::out_of_range)
-          throw std::runtime_error("MovingScene::neighbors: mu^2 of a trial particle and particle " +
-                                   std::to_string(pending.index[k]) + " has no answer (" +
-                                   status_name(status[k]) + ")");
+          throw std::runtime_error(
+              "MovingScene::neighbors: mu^2 of a trial particle and particle " +
+              std::to_string(pending.index[k]) + " has no answer (" + status_name(status[k]) + ")");
         if (mu2[k] < cutoff * cutoff) out.push_back({pending.index[k], mu2[k]});
       }
     } else {
@@ -771,9 +769,9 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
       overlap_batch(pending.batch.view(), {overlap.data(), status.data()}, options, cutoff);
       for (std::size_t k = 0; k < n; ++k) {
         if (!is_valid(status[k]))
-          throw std::runtime_error("MovingScene::neighbors: the pair of a trial particle and particle " +
-                                   std::to_string(pending.index[k]) + " has no answer (" +
-                                   status_name(status[k]) + ")");
+          throw std::runtime_error(
+              "MovingScene::neighbors: the pair of a trial particle and particle " +
+              std::to_string(pending.index[k]) + " has no answer (" + status_name(status[k]) + ")");
         if (overlap[k]) out.push_back({pending.index[k], nan});
       }
     }
@@ -795,21 +793,22 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
   {
     Pending pending(batch_solve_pairs);
 #pragma omp for schedule(dynamic, 1)
-    for (std::size_t b = 0; b < blocks; ++b) errors.run([&] {
-      detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
-      const std::size_t begin = b * block, end = std::min(count, begin + block);
-      pending.clear();
-      for (std::size_t t = begin; t < end; ++t)
-        first_overlap[t] = prefilter_trial(s, trials[t], std::uint32_t(t), exclude ? exclude[t] : none,
-                                           pending);
-      // The first overlapping pair of each trial without a decided answer.
-      for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
-        const std::size_t n = std::min(solver.capacity(), pending.size() - at);
-        pending.solve(solver, at, n);
-      }
-      for (std::size_t k = pending.size(); k-- > 0;)
-        if (pending.overlap[k]) first_overlap[pending.trial[k]] = pending.index[k];
-    });
+    for (std::size_t b = 0; b < blocks; ++b)
+      errors.run([&] {
+        detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
+        const std::size_t begin = b * block, end = std::min(count, begin + block);
+        pending.clear();
+        for (std::size_t t = begin; t < end; ++t)
+          first_overlap[t] =
+              prefilter_trial(s, trials[t], std::uint32_t(t), exclude ? exclude[t] : none, pending);
+        // The first overlapping pair of each trial without a decided answer.
+        for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
+          const std::size_t n = std::min(solver.capacity(), pending.size() - at);
+          pending.solve(solver, at, n);
+        }
+        for (std::size_t k = pending.size(); k-- > 0;)
+          if (pending.overlap[k]) first_overlap[pending.trial[k]] = pending.index[k];
+      });
   }
   errors.rethrow_if_failed();
 }

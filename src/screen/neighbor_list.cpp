@@ -21,8 +21,8 @@ double now() {
 }
 
 bool same_box(const Box& a, const Box& b) {
-  return a.periodic == b.periodic && a.two_dimensional == b.two_dimensional && a.length == b.length &&
-         a.tilt == b.tilt;
+  return a.periodic == b.periodic && a.two_dimensional == b.two_dimensional &&
+         a.length == b.length && a.tilt == b.tilt;
 }
 
 }  // namespace
@@ -36,7 +36,8 @@ SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(option
                                 std::to_string(options.skin));
 }
 
-SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& box, ScreenedPairs& out) {
+SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& box,
+                                    ScreenedPairs& out) {
   const double start = now();
   SkinReport report;
   const std::size_t n = particles.size();

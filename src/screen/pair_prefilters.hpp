@@ -57,11 +57,11 @@ inline bool apart_by_projections(const Side& p, const Side& o, const double r[3]
 
 // What the prefilters say of a pair the bounding spheres left.
 enum class NearPair : std::uint8_t {
-  spheres,             // two spheres: mu2 in closed form
-  same_form,           // one form Q: mu2 in closed form
-  in,                  // mu < cutoff by the inscribed spheres (no mu2)
-  out_by_projection,   // apart by a separating plane normal to r
-  undecided,           // to be solved
+  spheres,            // two spheres: mu2 in closed form
+  same_form,          // one form Q: mu2 in closed form
+  in,                 // mu < cutoff by the inscribed spheres (no mu2)
+  out_by_projection,  // apart by a separating plane normal to r
+  undecided,          // to be solved
 };
 
 // The pair (p, o) with r = c_o - c_p and rr = |r|^2; mu2 is set for

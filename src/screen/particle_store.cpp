@@ -153,7 +153,8 @@ ParticleStore::Particle ParticleStore::particle(const std::array<double, 3>& cen
 
 void ParticleStore::set(std::size_t i, const std::array<double, 3>& centre,
                         const std::array<double, 6>& q) {
-  set_particle(i, named_particle(i, [&](const std::string& who) { return particle(centre, q, who); }));
+  set_particle(i,
+               named_particle(i, [&](const std::string& who) { return particle(centre, q, who); }));
 }
 
 namespace {
@@ -208,8 +209,8 @@ void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
   set_particle(i, named_particle(i, [&](const std::string& who) {
-                  return particle_axes(centre, semi_axes, quaternion, who);
-                }));
+                 return particle_axes(centre, semi_axes, quaternion, who);
+               }));
 }
 
 std::uint32_t ParticleStore::add_type(const std::array<double, 3>& semi_axes) {
@@ -228,8 +229,9 @@ std::uint32_t ParticleStore::add_type(const std::array<double, 3>& semi_axes) {
 
 const std::array<double, 3>& ParticleStore::type_semi_axes(std::uint32_t type) const {
   if (type >= type_axes_.size())
-    throw std::invalid_argument("ParticleStore: type " + std::to_string(type) + " does not exist (" +
-                                std::to_string(type_axes_.size()) + " types)");
+    throw std::invalid_argument("ParticleStore: type " + std::to_string(type) +
+                                " does not exist (" + std::to_string(type_axes_.size()) +
+                                " types)");
   return type_axes_[type];
 }
 
@@ -255,11 +257,12 @@ ParticleStore::Particle ParticleStore::particle_typed(const std::array<double, 3
 void ParticleStore::set_typed(std::size_t i, const std::array<double, 3>& centre,
                               std::uint32_t type, const std::array<double, 4>& quaternion) {
   set_particle(i, named_particle(i, [&](const std::string& who) {
-                  return particle_typed(centre, type, quaternion, who);
-                }));
+                 return particle_typed(centre, type, quaternion, who);
+               }));
 }
 
-ParticleStore::Particle ParticleStore::Particle::moved_to(const std::array<double, 3>& centre) const {
+ParticleStore::Particle ParticleStore::Particle::moved_to(
+    const std::array<double, 3>& centre) const {
   check_centre("trial particle", centre);
   Particle p = *this;
   p.centre_ = centre;
@@ -286,7 +289,8 @@ void ParticleStore::set_particle(std::size_t i, const Particle& p) {
                             std::to_string(size()) + " particles)");
   if (p.type_ != untyped && p.type_ >= type_axes_.size())
     throw std::invalid_argument(particle_name(i) + ": type " + std::to_string(p.type_) +
-                                " does not exist (" + std::to_string(type_axes_.size()) + " types)");
+                                " does not exist (" + std::to_string(type_axes_.size()) +
+                                " types)");
   for (int k = 0; k < 3; ++k) centre_[k][i] = p.centre_[k];
   for (int k = 0; k < 6; ++k) q_[k][i] = p.q_[k];
   bounding_[i] = p.bounding_;
@@ -364,17 +368,20 @@ void ParticleStore::set_ellipse(std::size_t i, double x, double y, double a, dou
                                 double theta) {
   check_centre(particle_name(i), {x, y, 0});
   if (!(a > 0) || !std::isfinite(a) || !(b > 0) || !std::isfinite(b))
-    throw std::invalid_argument(particle_name(i) + ": semi-axes must be positive and finite, got (" +
-                                number_text(a) + ", " + number_text(b) + ")");
-  if (!std::isfinite(theta)) throw std::invalid_argument(particle_name(i) + ": the angle is not finite");
+    throw std::invalid_argument(particle_name(i) +
+                                ": semi-axes must be positive and finite, got (" + number_text(a) +
+                                ", " + number_text(b) + ")");
+  if (!std::isfinite(theta))
+    throw std::invalid_argument(particle_name(i) + ": the angle is not finite");
   const double c = std::cos(theta), s = std::sin(theta), a2 = a * a, b2 = b * b;
   const double smallest = std::min(a, b);
   // Q = R diag(a^2, b^2) R^T in the plane, min(a, b)^2 along z; a circle
   // is stored exactly as a^2 I (a sphere), as add_axes does.
   const std::array<double, 6> q =
       a == b ? std::array<double, 6>{a2, 0, 0, a2, 0, a2}
-             : std::array<double, 6>{a2 * c * c + b2 * s * s, (a2 - b2) * c * s, 0,
-                                     a2 * s * s + b2 * c * c, 0, smallest * smallest};
+             : std::array<double, 6>{
+                   a2 * c * c + b2 * s * s, (a2 - b2) * c * s, 0, a2 * s * s + b2 * c * c, 0,
+                   smallest * smallest};
   set_particle(i, untyped_particle(particle_name(i), {x, y, 0}, q, smallest * smallest,
                                    std::max(a, b) * std::max(a, b)));
 }

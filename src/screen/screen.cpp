@@ -38,8 +38,8 @@ struct ThreadPairs {
   std::vector<Undecided> undecided;  // waiting for the next chunk's solve
   std::vector<std::uint64_t> found;  // i << 32 | j
   std::vector<double> found_mu2;     // with_mu2
-  std::size_t candidates = 0, out = 0, out_by_projection = 0, in = 0, spheres = 0, same_form = 0, solved = 0, invalid = 0,
-              fallbacks = 0;
+  std::size_t candidates = 0, out = 0, out_by_projection = 0, in = 0, spheres = 0, same_form = 0,
+              solved = 0, invalid = 0, fallbacks = 0;
   double evaluations = 0;  // summed over the solved pairs
   double seconds_compaction = 0, seconds_solve = 0;
   BatchReport last;  // of the last chunk solved (settings as resolved)
@@ -53,9 +53,7 @@ struct ThreadPairs {
 // enough that the chunk stays in cache between compaction and solve.
 constexpr std::size_t solve_chunk = 8192;
 
-std::uint64_t pair_key(std::uint32_t i, std::uint32_t j) {
-  return (std::uint64_t(i) << 32) | j;
-}
+std::uint64_t pair_key(std::uint32_t i, std::uint32_t j) { return (std::uint64_t(i) << 32) | j; }
 
 // Compacts the waiting pairs into the thread's batch and solves them (one
 // thread: the screen's threads are already busy), keeping those found.
@@ -83,8 +81,7 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
                                     batch_options);
     for (std::size_t at = 0; at < n; ++at)
       // (A mu^2 below the normal range, out_of_range, is a pair found.)
-      if ((is_valid(t.status[at]) || t.status[at] == Status::out_of_range) &&
-          t.mu2[at] < cutoff2) {
+      if ((is_valid(t.status[at]) || t.status[at] == Status::out_of_range) && t.mu2[at] < cutoff2) {
         t.found.push_back(pair_key(t.undecided[at].i, t.undecided[at].j));
         t.found_mu2.push_back(t.mu2[at]);
       }
@@ -145,11 +142,8 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
       mine.found.push_back(pair_key(a, b));
       ++mine.in;
       return;
-    case screen::NearPair::out_by_projection:
-      ++mine.out_by_projection;
-      return;
-    case screen::NearPair::undecided:
-      break;
+    case screen::NearPair::out_by_projection: ++mine.out_by_projection; return;
+    case screen::NearPair::undecided: break;
   }
   // r12 from the lower index to the higher: the pair as (a, b).
   const double sign = p_first ? 1 : -1;
@@ -179,7 +173,8 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
     char text[32];  // the shortest form that reads back as the value
     *std::to_chars(text, text + sizeof text - 1, options.cutoff).ptr = '\0';
     throw std::invalid_argument(std::string("screen_pairs: the cutoff's square is outside the "
-                                            "range of normal doubles, cutoff ") + text);
+                                            "range of normal doubles, cutoff ") +
+                                text);
   }
   // PWCONTACT_ISA and the CPU are read once, here.
   options.batch.isa = resolve_isa(options.batch.isa);
@@ -219,7 +214,8 @@ std::vector<T> sorted_union(std::vector<std::vector<T>>& lists, int threads, Les
   const std::ptrdiff_t count = std::ptrdiff_t(lists.size());
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (std::ptrdiff_t t = 0; t < count; ++t)
-    errors.run([&] { std::sort(lists[std::size_t(t)].begin(), lists[std::size_t(t)].end(), less); });
+    errors.run(
+        [&] { std::sort(lists[std::size_t(t)].begin(), lists[std::size_t(t)].end(), less); });
   errors.rethrow_if_failed();
   std::vector<T> merged, next;
   for (std::vector<T>& list : lists) {
@@ -312,7 +308,6 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
 
 }  // namespace
 
-
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
                           const ScreenOptions& given, ScreenedPairs& out) {
   const ScreenOptions options = checked(particles, box, given);
@@ -357,8 +352,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 
 ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
                                const std::uint32_t* first, const std::uint32_t* second,
-                               std::size_t count, const ScreenOptions& given,
-                               ScreenedPairs& out) {
+                               std::size_t count, const ScreenOptions& given, ScreenedPairs& out) {
   const ScreenOptions options = checked(particles, box, given);
   if (count > 0 && (!first || !second))
     throw std::invalid_argument("screen_candidates: null candidate arrays");
@@ -385,28 +379,31 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   {
     ThreadPairs& mine = per_thread[std::size_t(omp_get_thread_num())];
 #pragma omp for schedule(static)
-    for (std::size_t k = 0; k < count; ++k) errors.run([&] {
-      const std::uint32_t i = first[k], j = second[k];
-      // The centres wrapped into the box (as the cell lists do), then the
-      // minimum image of their difference.
-      const double xi[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
-      const double xj[3] = {particles.centre(0)[j], particles.centre(1)[j], particles.centre(2)[j]};
-      double wi[3], wj[3], r[3];
-      geometry.wrap(xi, wi);
-      geometry.wrap(xj, wj);
-      for (int a = 0; a < 3; ++a) r[a] = wj[a] - wi[a];
-      geometry.minimum_image(r);
-      const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-      ++mine.candidates;
-      if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) return;
-      double qi[6], qj[6];
-      for (int a = 0; a < 6; ++a) {
-        qi[a] = particles.q(a)[i];
-        qj[a] = particles.q(a)[j];
-      }
-      classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], qi},
-                         {j, bounding[j], inscribed[j], sphere[j], qj}, r, rr);
-    });
+    for (std::size_t k = 0; k < count; ++k)
+      errors.run([&] {
+        const std::uint32_t i = first[k], j = second[k];
+        // The centres wrapped into the box (as the cell lists do), then the
+        // minimum image of their difference.
+        const double xi[3] = {particles.centre(0)[i], particles.centre(1)[i],
+                              particles.centre(2)[i]};
+        const double xj[3] = {particles.centre(0)[j], particles.centre(1)[j],
+                              particles.centre(2)[j]};
+        double wi[3], wj[3], r[3];
+        geometry.wrap(xi, wi);
+        geometry.wrap(xj, wj);
+        for (int a = 0; a < 3; ++a) r[a] = wj[a] - wi[a];
+        geometry.minimum_image(r);
+        const double rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+        ++mine.candidates;
+        if (apart_by_bounding_spheres(mine, options.cutoff, rr, bounding[i] + bounding[j])) return;
+        double qi[6], qj[6];
+        for (int a = 0; a < 6; ++a) {
+          qi[a] = particles.q(a)[i];
+          qj[a] = particles.q(a)[j];
+        }
+        classify_near_pair(mine, options, {i, bounding[i], inscribed[i], sphere[i], qi},
+                           {j, bounding[j], inscribed[j], sphere[j], qj}, r, rr);
+      });
     errors.run([&] { solve_waiting(mine, options); });
   }
   errors.rethrow_if_failed();
@@ -414,10 +411,10 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   return report;
 }
 
-void for_each_candidate_pair(
-    const ParticleStore& particles, const Box& box, double cutoff, int threads,
-    const std::function<void(int thread, std::uint32_t i, std::uint32_t j, const double r12[3])>&
-        visit) {
+void for_each_candidate_pair(const ParticleStore& particles, const Box& box, double cutoff,
+                             int threads,
+                             const std::function<void(int thread, std::uint32_t i, std::uint32_t j,
+                                                      const double r12[3])>& visit) {
   ScreenOptions given;
   given.cutoff = cutoff;
   given.threads = threads;
@@ -442,13 +439,16 @@ namespace {
 // The pairs as screen_pairs gives them: of the particles, i < j, sorted by
 // i then j, each once (the neighbour list's rows come sorted from that).
 void check_pairs(const ScreenedPairs& pairs, std::size_t particles, const char* caller) {
-  if (pairs.j.size() != pairs.i.size() || (!pairs.mu2.empty() && pairs.mu2.size() != pairs.i.size()))
+  if (pairs.j.size() != pairs.i.size() ||
+      (!pairs.mu2.empty() && pairs.mu2.size() != pairs.i.size()))
     throw std::invalid_argument(std::string(caller) + ": i, j and mu2 differ in length");
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     const auto i = pairs.i[k], j = pairs.j[k];
     const char* wrong = nullptr;
-    if (j >= particles) wrong = "is not of the particles";
-    else if (i >= j) wrong = "has i >= j";
+    if (j >= particles)
+      wrong = "is not of the particles";
+    else if (i >= j)
+      wrong = "has i >= j";
     else if (k > 0 && (i < pairs.i[k - 1] || (i == pairs.i[k - 1] && j <= pairs.j[k - 1])))
       wrong = "is out of order (the pairs must be sorted by i, then j, each once)";
     if (wrong)
