@@ -17,15 +17,7 @@ file(REMOVE_RECURSE "${WORK_DIR}")
 load_cache("${PWCONTACT_BINARY_DIR}" READ_WITH_PREFIX PARENT_
   CMAKE_BUILD_TYPE CMAKE_CXX_FLAGS CMAKE_EXE_LINKER_FLAGS)
 
-function(run_step name)
-  list(JOIN ARGN " " command)
-  message(STATUS "${name}: ${command}")
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE result OUTPUT_VARIABLE output ERROR_VARIABLE output)
-  if(NOT result EQUAL 0)
-    message(FATAL_ERROR "${name} failed (${result}):\n${output}")
-  endif()
-  message(STATUS "${name} output:\n${output}")
-endfunction()
+include("${CMAKE_CURRENT_LIST_DIR}/run_step.cmake")
 
 run_step(install "${CMAKE_COMMAND}" --install "${PWCONTACT_BINARY_DIR}" --prefix "${prefix}")
 run_step(configure "${CMAKE_COMMAND}" -S "${CONSUMER_SOURCE_DIR}" -B "${build}"

@@ -11,15 +11,7 @@ endforeach()
 set(build "${WORK_DIR}/build")
 file(REMOVE_RECURSE "${WORK_DIR}")
 
-function(run_step name)
-  list(JOIN ARGN " " command)
-  message(STATUS "${name}: ${command}")
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE result OUTPUT_VARIABLE output ERROR_VARIABLE output)
-  if(NOT result EQUAL 0)
-    message(FATAL_ERROR "${name} failed (${result}):\n${output}")
-  endif()
-  message(STATUS "${name} output:\n${output}")
-endfunction()
+include("${CMAKE_CURRENT_LIST_DIR}/run_step.cmake")
 
 run_step(configure "${CMAKE_COMMAND}" -S "${CONSUMER_SOURCE_DIR}" -B "${build}"
   "-DPWCONTACT_SOURCE_DIR=${PWCONTACT_SOURCE_DIR}"

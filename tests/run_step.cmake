@@ -1,0 +1,11 @@
+# run_step(name command...): runs one step of a consumer test (cmake -P
+# scripts); a failing step fails the test and shows that step's output.
+function(run_step name)
+  list(JOIN ARGN " " command)
+  message(STATUS "${name}: ${command}")
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE result OUTPUT_VARIABLE output ERROR_VARIABLE output)
+  if(NOT result EQUAL 0)
+    message(FATAL_ERROR "${name} failed (${result}):\n${output}")
+  endif()
+  message(STATUS "${name} output:\n${output}")
+endfunction()
