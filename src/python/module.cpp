@@ -485,35 +485,37 @@ py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool wit
   py::array_t<std::uint32_t> out({py::ssize_t(m), py::ssize_t(2)});
   py::array_t<std::uint32_t> counts{py::ssize_t(n)};
   py::array_t<std::int64_t> offsets{py::ssize_t(n + 1)};
+  py::array_t<double> mu2{py::ssize_t(with_mu2 ? m : 0)};
+  std::uint32_t* const p = out.mutable_data();
+  std::uint32_t* const c = counts.mutable_data();
+  std::int64_t* const o = offsets.mutable_data();
+  double* const mu2_out = mu2.mutable_data();
   {
-    auto p = out.mutable_unchecked<2>();
-    auto c = counts.mutable_unchecked<1>();
-    auto o = offsets.mutable_unchecked<1>();
-    for (std::size_t i = 0; i < n; ++i) c(i) = 0;
-    std::size_t k = 0;
-    for (std::size_t i = 0; i <= n; ++i) {
-      // offsets over the sorted pairs: pairs[offsets[i]:offsets[i + 1]] are (i, j > i).
-      o(i) = std::int64_t(k);
-      while (i < n && k < m && pairs.i[k] == i) ++k;
-    }
+    // One pass over the sorted pairs, without the GIL: the (i, j) rows, the
+    // counts, and the offsets (pairs[offsets[k]:offsets[k + 1]] are those
+    // (k, j > k)).
+    py::gil_scoped_release release;
+    std::fill(c, c + n, 0u);
+    std::size_t next = 0;  // the first particle whose offset is not written
     for (std::size_t q = 0; q < m; ++q) {
-      p(q, 0) = pairs.i[q];
-      p(q, 1) = pairs.j[q];
-      ++c(pairs.i[q]);
-      ++c(pairs.j[q]);
+      const std::uint32_t i = pairs.i[q], j = pairs.j[q];
+      while (next <= i) o[next++] = std::int64_t(q);
+      p[2 * q] = i;
+      p[2 * q + 1] = j;
+      ++c[i];
+      ++c[j];
     }
+    while (next <= n) o[next++] = std::int64_t(m);
+    if (with_mu2) std::copy(pairs.mu2.begin(), pairs.mu2.end(), mu2_out);
   }
   py::dict d;
   d["pairs"] = out;
   d["counts"] = counts;
   d["offsets"] = offsets;
-  if (with_mu2) {
-    py::array_t<double> mu2{py::ssize_t(m)};
-    std::copy(pairs.mu2.begin(), pairs.mu2.end(), mu2.mutable_data());
+  if (with_mu2)
     d["mu2"] = mu2;
-  } else {
+  else
     d["mu2"] = py::none();
-  }
   py::dict r;
   r["candidate_pairs"] = report.candidate_pairs;
   r["solved"] = report.solved;
