@@ -40,9 +40,9 @@ QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
 
 QuadraticForm quadratic_form_from_quaternion(const std::array<double, 3>& semi_axes,
                                              const std::array<double, 4>& quaternion) {
-  // Brought to a largest component in [1/2, 1) by a power of two (exact)
-  // first, so that its norm neither underflows nor overflows: any finite,
-  // non-zero quaternion gives its rotation.
+  // Outside 2^+-400 brought to a largest component in [1/2, 1) by a power of
+  // two (exact) first, so that its norm neither underflows nor overflows:
+  // any finite, non-zero quaternion gives its rotation.
   double largest = 0;
   bool finite = true;
   for (double c : quaternion) {

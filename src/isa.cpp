@@ -57,6 +57,9 @@ const Target* find_target(Isa isa) noexcept {
 const std::array<bool, target_count>& support() noexcept {
   static const std::array<bool, target_count> supported = [] {
     std::array<bool, target_count> s{};
+#if PWCONTACT_X86_KERNELS
+    __builtin_cpu_init();  // (asked once: possibly before libgcc's own initialiser has run)
+#endif
     for (std::size_t k = 0; k < target_count; ++k) s[k] = targets[k].supported();
     return s;
   }();

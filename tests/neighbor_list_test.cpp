@@ -147,8 +147,6 @@ TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {
 }
 
 TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
-  if (pwtest::on_portable_target())
-    GTEST_SKIP() << "the portable target makes no kernel evaluations to save";
   std::mt19937_64 engine(30);
   Moving m = random_scene(3000, 15, 6, false);
   pwcontact::SkinOptions warm_options, cold_options;
@@ -172,7 +170,10 @@ TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
   }
   std::printf("[ measured ] mean evaluations per pair, warm %.3f, cold %.3f\n",
               warm_evaluations / 10, cold_evaluations / 10);
-  EXPECT_LT(warm_evaluations, 0.8 * cold_evaluations);
+  // (The portable target makes no kernel evaluations to save.)
+  if (!pwtest::on_portable_target()) {
+    EXPECT_LT(warm_evaluations, 0.8 * cold_evaluations);
+  }
 }
 
 TEST(WarmStart, AnyStartingLambdaGivesTheReferenceAnswer) {

@@ -1,6 +1,7 @@
 # Configures, builds and runs the consumer project with pwcontact's source
 # tree pulled in by add_subdirectory, with no build type of its own (which
-# pwcontact must leave empty). Run with cmake -P; any failing step fails the
+# pwcontact must leave empty), and without the x86 kernels
+# (PWCONTACT_SIMD_KERNELS=OFF: the portable build other processors get). Run with cmake -P; any failing step fails the
 # test and shows that step's output.
 foreach(variable PWCONTACT_SOURCE_DIR CONSUMER_SOURCE_DIR WORK_DIR CMAKE_CXX_COMPILER)
   if(NOT DEFINED ${variable})
@@ -15,6 +16,7 @@ include("${CMAKE_CURRENT_LIST_DIR}/run_step.cmake")
 
 run_step(configure "${CMAKE_COMMAND}" -S "${CONSUMER_SOURCE_DIR}" -B "${build}"
   "-DPWCONTACT_SOURCE_DIR=${PWCONTACT_SOURCE_DIR}"
+  -DPWCONTACT_SIMD_KERNELS=OFF
   "-DCMAKE_CXX_COMPILER=${CMAKE_CXX_COMPILER}")
 load_cache("${build}" READ_WITH_PREFIX CONSUMER_ CMAKE_BUILD_TYPE)
 if(NOT "${CONSUMER_CMAKE_BUILD_TYPE}" STREQUAL "")

@@ -432,14 +432,15 @@ Pair<double> make_pair(const std::array<double, 3>& r, const pwcontact::Quadrati
 // ---------------------------------------------------------------------------
 // Environment
 
-// Sets (or with nullopt unsets) an environment variable for the lifetime of
-// the object and restores the previous state afterwards.
 // Whether calls that leave the instruction set automatic run on the portable
 // target (a build without the x86 kernels, or PWCONTACT_ISA=fallback), which
 // answers every pair on the reference path: status ok_fallback, no kernel
 // evaluations. Tests of what the x86 kernels themselves report skip there.
 bool on_portable_target();
 
+// Sets (or with nullopt unsets) an environment variable for the lifetime of
+// the object and restores the previous state afterwards (and has the
+// library read PWCONTACT_ISA again).
 class ScopedEnvironment {
  public:
   ScopedEnvironment(std::string name, std::optional<std::string> value);

@@ -46,7 +46,9 @@ std::vector<Isa> supported_isas();     // best first, never includes automatic; 
 Isa resolve_isa(Isa requested);
 
 // Reads PWCONTACT_ISA again, for a program that changes its own environment
-// after its first batch call (resolve_isa reads it once).
+// after its first batch call (resolve_isa reads it once). Not thread-safe:
+// call it only while no other thread is in a batch, screen or resolve_isa
+// call (as setenv itself requires).
 void reread_isa_environment();
 
 // SIMD lanes per register for this instruction set and floating type.

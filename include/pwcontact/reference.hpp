@@ -14,7 +14,10 @@
 // We run a safeguarded Newton iteration on g: a Newton step is accepted when
 // it stays inside the current bracket (inclusive test: at convergence the
 // Newton iterate coincides with a bracket end) and is replaced by bisection
-// otherwise, so convergence is global.
+// otherwise, so convergence is global; an iterate that lands exactly on the
+// far end of the bracket (a point already evaluated: a cycle on noise in g)
+// is bisected too, or ends the iteration when no number lies inside the
+// bracket.
 #pragma once
 
 #include <cmath>

@@ -115,6 +115,9 @@ struct KernelTable {
 
 // The tables, one per target (kernels/contact_<target>.cpp); chosen only
 // through kernels_for (isa.cpp, the one dispatch point).
+#ifndef PWCONTACT_X86_KERNELS
+#error "PWCONTACT_X86_KERNELS (0 or 1) is set by src/CMakeLists.txt for the library's sources"
+#endif
 #if PWCONTACT_X86_KERNELS
 extern const KernelTable kernel_table_sse2;
 extern const KernelTable kernel_table_avx2;
