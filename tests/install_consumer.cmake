@@ -1,11 +1,8 @@
 # Installs the built project into a fresh prefix, then configures, builds and
 # runs the consumer project against it. Run with cmake -P; any failing step
 # fails the test and shows that step's output.
-foreach(variable PWCONTACT_BINARY_DIR CONSUMER_SOURCE_DIR WORK_DIR CMAKE_CXX_COMPILER)
-  if(NOT DEFINED ${variable})
-    message(FATAL_ERROR "install_consumer.cmake needs -D${variable}=...")
-  endif()
-endforeach()
+include("${CMAKE_CURRENT_LIST_DIR}/run_step.cmake")
+require_variables(install_consumer.cmake PWCONTACT_BINARY_DIR CONSUMER_SOURCE_DIR WORK_DIR CMAKE_CXX_COMPILER)
 
 set(prefix "${WORK_DIR}/prefix")
 set(build "${WORK_DIR}/build")
@@ -17,7 +14,6 @@ file(REMOVE_RECURSE "${WORK_DIR}")
 load_cache("${PWCONTACT_BINARY_DIR}" READ_WITH_PREFIX PARENT_
   CMAKE_BUILD_TYPE CMAKE_CXX_FLAGS CMAKE_EXE_LINKER_FLAGS)
 
-include("${CMAKE_CURRENT_LIST_DIR}/run_step.cmake")
 
 run_step(install "${CMAKE_COMMAND}" --install "${PWCONTACT_BINARY_DIR}" --prefix "${prefix}")
 run_step(configure "${CMAKE_COMMAND}" -S "${CONSUMER_SOURCE_DIR}" -B "${build}"

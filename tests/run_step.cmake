@@ -1,5 +1,17 @@
-# run_step(name command...): runs one step of a consumer test (cmake -P
-# scripts); a failing step fails the test and shows that step's output.
+# Helpers of the consumer tests (cmake -P scripts).
+
+# require_variables(script var...): stops, naming the script, unless every
+# variable was given with -D.
+function(require_variables script)
+  foreach(variable IN LISTS ARGN)
+    if(NOT DEFINED ${variable})
+      message(FATAL_ERROR "${script} needs -D${variable}=...")
+    endif()
+  endforeach()
+endfunction()
+
+# run_step(name command...): runs one step of a consumer test; a failing
+# step fails the test and shows that step's output.
 function(run_step name)
   list(JOIN ARGN " " command)
   message(STATUS "${name}: ${command}")
