@@ -8,8 +8,10 @@
 // particle i has moved by d_i (its centre, by the minimum image) and its form
 // changed from Q_i to Q_i' (a turn, or any change of shape). The support of
 // its shape moved outwards by at most t_i = |Q_i' - Q_i|_F / (2 rho_i) in any
-// direction (|sqrt(n^T Q' n) - sqrt(n^T Q n)| <= |n^T (Q' - Q) n| / (2 rho_i)
-// for a unit n, rho_i its inscribed radius then, sqrt(lambda_min(Q_i))). So
+// direction (sqrt(n^T Q' n) - sqrt(n^T Q n) <= n^T (Q' - Q) n / (2 sqrt(n^T Q n))
+// by the concavity of the square root, for a unit n, and sqrt(n^T Q n) >=
+// rho_i, its inscribed radius then, sqrt(lambda_min(Q_i)); only this outward
+// bound is needed; doc/theory.md eq. 34). So
 // the ellipsoid scaled by mu_cut now lies inside the old one scaled by
 // mu_cut + m_i, m_i = (d_i + mu_cut t_i) / rho_i (a ball of radius x lies in
 // x / rho_i times the ellipsoid), and two particles with mu < mu_cut now had

@@ -86,13 +86,14 @@ struct Ldlt3 {
 // d0 = a0, d1 = a3 - l10 a1, d2 = a5 - l20 a2 - l21 t (t = a4 - l20 a1),
 // each compared with a rigorous bound on its rounding error. A pivot carries
 // its own rounding and what it inherits from the earlier ones: to first
-// order (u = eps / 2, the unit roundoff),
-//   |d1~ - d1| <= 3u (a3 + |l10 a1|)                                 = 3u C1
-//   |d2~ - d2| <= 2u (a5 + |l20 a2| + l21 t) + 4u |l21| (|a4| + |l20 a1|)
-//                 + 3u l21^2 C1 + 2u l21 t
+// order (u = eps / 2, the unit roundoff; doc/theory.md eq. 39, which counts
+// each term),
+//   |d1~ - d1| <= 3u C1,  C1 = a3 + |l10 a1|                (cancelled1)
+//   |d2~ - d2| <= 6u C2,  C2 = a5 + |l20 a2| + l21 t
+//                              + |l21| (|a4| + |l20 a1|) + l21^2 C1   (cancelled2)
 // (the last terms are t^2 / d1 inheriting the errors of t and d1). The
-// filter's bounds are twice these, plus an absolute floor for the rounding
-// of numbers that underflow. A pivot below minus its bound proves the
+// filter's bounds, 4 eps C_i = 8u C_i, lie above both, plus an absolute
+// floor for the rounding of numbers that underflow. A pivot below minus its bound proves the
 // form indefinite or negative (the leading minors are a0 d1 and a0 d1 d2);
 // one above 64 times the rounding of its terms (where the first-order bound
 // holds with room) proves the minor positive. Between, the filter cannot
