@@ -13,6 +13,7 @@
 
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/screen.hpp"
+#include "screen/huge_pages.hpp"
 
 namespace pwcontact {
 
@@ -85,11 +86,15 @@ void ParticleStore::for_each_array(Visit&& visit) {
 }
 
 void ParticleStore::reserve(std::size_t n) {
-  for_each_array([n](std::vector<double>& v) { v.reserve(n); });
-  type_id_.reserve(n);
+  for_each_array([n](std::vector<double>& v) { screen::reserve_in_huge_pages(v, n); });
+  screen::reserve_in_huge_pages(type_id_, n);
 }
 
 void ParticleStore::resize(std::size_t n) {
+  // Beyond the capacity: reserved (in huge pages) with the vector's
+  // doubling, so that growing one particle at a time stays linear.
+  const std::size_t capacity = centre_[0].capacity();
+  if (n > capacity) reserve(std::max(n, 2 * capacity));
   for_each_array([n](std::vector<double>& v) { v.resize(n); });
   type_id_.resize(n, untyped);
 }
