@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "pwcontact/pwcontact.hpp"
+#include "screen/radix_sort.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -1062,3 +1063,34 @@ TEST(Screen, AnEmptySceneAndASingleParticleFindNothing) {
 }
 
 }  // namespace
+
+// The radix sort of the pairs found, against std::stable_sort on keys as
+// the screen makes them (i << 32 | j, both below the particle count), with
+// repeated keys and a payload that must travel with its key.
+TEST(ScreenRadixSort, SortsPairKeysStablyAsAComparisonSortDoes) {
+  std::mt19937_64 engine(11);
+  for (std::size_t particles :
+       {std::size_t(1), std::size_t(2), std::size_t(3), std::size_t(2047), std::size_t(2049),
+        std::size_t(1) << 22, (std::size_t(1) << 31) - 1}) {
+    for (std::size_t n : {std::size_t(0), std::size_t(1), std::size_t(2), std::size_t(5000)}) {
+      std::uniform_int_distribution<std::uint64_t> index(0, particles - 1);
+      std::vector<std::pair<std::uint64_t, std::size_t>> v;
+      for (std::size_t k = 0; k < n; ++k) {
+        // A tenth repeat an earlier key (the same pair found twice).
+        const std::uint64_t key =
+            k > 0 && k % 10 == 0 ? v[k / 2].first : (index(engine) << 32) | index(engine);
+        v.push_back({key, k});
+      }
+      std::vector<std::pair<std::uint64_t, std::size_t>> expected = v;
+      std::stable_sort(expected.begin(), expected.end(),
+                       [](const auto& x, const auto& y) { return x.first < y.first; });
+      pwcontact::screen::radix_sort_pair_keys(v, pwcontact::screen::index_bits(particles),
+                                              [](const auto& x) { return x.first; });
+      EXPECT_EQ(v, expected) << particles << " particles, " << n << " keys";
+    }
+  }
+  EXPECT_EQ(pwcontact::screen::index_bits(1), 0);
+  EXPECT_EQ(pwcontact::screen::index_bits(2), 1);
+  EXPECT_EQ(pwcontact::screen::index_bits(1000000), 20);
+  EXPECT_EQ(pwcontact::screen::index_bits(std::size_t(1) << 20), 20);
+}

@@ -17,6 +17,7 @@
 #include "pwcontact/screen.hpp"
 #include "screen/cell_lists.hpp"
 #include "screen/pair_prefilters.hpp"
+#include "screen/radix_sort.hpp"
 
 namespace pwcontact {
 using screen::Side;
@@ -204,28 +205,33 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
 namespace {
 
 // The elements of the lists (one per thread of the search), sorted by
-// `less`, each once (elements equal under `less` are the same pair): each
-// list sorted in a thread of its own, then merged two by two. (Not
-// libstdc++'s parallel mode, whose sort lets exceptions out of its OpenMP
-// region and races on its thread count.)
-template <class T, class Less>
-std::vector<T> sorted_union(std::vector<std::vector<T>>& lists, int threads, Less less) {
+// their pair keys key(x) (pair_key of two indices below `particles`), each
+// once (elements of equal keys are the same pair): each list sorted by
+// radix in a thread of its own, then merged two by two.
+template <class T, class Key>
+std::vector<T> sorted_union(std::vector<std::vector<T>>& lists, int threads, std::size_t particles,
+                            Key key) {
+  const auto less = [&key](const T& x, const T& y) { return key(x) < key(y); };
+  const int bits = screen::index_bits(particles);
   detail::ParallelErrors errors;
   const std::ptrdiff_t count = std::ptrdiff_t(lists.size());
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (std::ptrdiff_t t = 0; t < count; ++t)
-    errors.run(
-        [&] { std::sort(lists[std::size_t(t)].begin(), lists[std::size_t(t)].end(), less); });
+    errors.run([&] { screen::radix_sort_pair_keys(lists[std::size_t(t)], bits, key); });
   errors.rethrow_if_failed();
   std::vector<T> merged, next;
   for (std::vector<T>& list : lists) {
+    if (merged.empty()) {  // (the first list, or those after empty ones: no copy)
+      merged.swap(list);
+      continue;
+    }
     next.resize(merged.size() + list.size());
     std::merge(merged.begin(), merged.end(), list.begin(), list.end(), next.begin(), less);
     merged.swap(next);
     std::vector<T>().swap(list);
   }
   merged.erase(std::unique(merged.begin(), merged.end(),
-                           [&less](const T& x, const T& y) { return !less(x, y) && !less(y, x); }),
+                           [&key](const T& x, const T& y) { return key(x) == key(y); }),
                merged.end());
   return merged;
 }
@@ -233,7 +239,7 @@ std::vector<T> sorted_union(std::vector<std::vector<T>>& lists, int threads, Les
 // Sums what the threads counted into the report, and the pairs found,
 // sorted by (i, j) and each once, into out. t1: when the search began.
 void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, int threads,
-            double t1, ScreenReport& report, ScreenedPairs& out) {
+            std::size_t particles, double t1, ScreenReport& report, ScreenedPairs& out) {
   // Compaction and solve ran inside the search, chunk by chunk: their times
   // are the threads' summed times shared out over the threads, and the
   // search's time what remains of the stage.
@@ -281,8 +287,8 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
       std::vector<std::uint64_t>().swap(mine.found);
       std::vector<double>().swap(mine.found_mu2);
     }
-    const std::vector<std::pair<std::uint64_t, double>> found = sorted_union(
-        lists, threads, [](const auto& x, const auto& y) { return x.first < y.first; });
+    const std::vector<std::pair<std::uint64_t, double>> found =
+        sorted_union(lists, threads, particles, [](const auto& x) { return x.first; });
     out.i.resize(found.size());
     out.j.resize(found.size());
     out.mu2.resize(found.size());
@@ -294,7 +300,8 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   } else {
     std::vector<std::vector<std::uint64_t>> lists(per_thread.size());
     for (std::size_t t = 0; t < per_thread.size(); ++t) lists[t].swap(per_thread[t].found);
-    const std::vector<std::uint64_t> found = sorted_union(lists, threads, std::less<>());
+    const std::vector<std::uint64_t> found =
+        sorted_union(lists, threads, particles, [](std::uint64_t x) { return x; });
     out.i.resize(found.size());
     out.j.resize(found.size());
     for (std::size_t k = 0; k < found.size(); ++k) {
@@ -346,7 +353,7 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
         solve_waiting(mine, options);
       });
   if (options.progress) options.progress(1);
-  finish(per_thread, options, threads, t1, report, out);
+  finish(per_thread, options, threads, particles.size(), t1, report, out);
   return report;
 }
 
@@ -407,7 +414,7 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
     errors.run([&] { solve_waiting(mine, options); });
   }
   errors.rethrow_if_failed();
-  finish(per_thread, options, threads, t1, report, out);
+  finish(per_thread, options, threads, particles.size(), t1, report, out);
   return report;
 }
 

@@ -1,0 +1,51 @@
+// The pairs a screen finds, sorted by their keys i << 32 | j (i, j below the
+// particle count): a least-significant-digit radix sort over only the bits
+// the particle count leaves in each half of the key, 11 bits a pass. For a
+// million particles that is four passes over the keys, each a count and a
+// scatter into 2048 runs; std::sort's comparisons took 0.10 s of the 1M
+// demo scene's screen with one thread (1.34M pairs).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace pwcontact::screen {
+
+// Sorts v by key(element) (a std::uint64_t whose halves are each below
+// 2^bits_per_half), stably. Passes in which every key has the same digit
+// are skipped.
+template <class T, class Key>
+void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key) {
+  constexpr int digit_bits = 11;
+  constexpr std::size_t buckets = std::size_t(1) << digit_bits;
+  const std::size_t n = v.size();
+  if (n < 2) return;
+  std::vector<T> scratch(n);
+  std::vector<std::size_t> start(buckets);
+  for (int half = 0; half < 64; half += 32)
+    for (int shift = half; shift < half + bits_per_half; shift += digit_bits) {
+      auto digit = [&](const T& x) { return std::size_t(key(x) >> shift) & (buckets - 1); };
+      std::fill(start.begin(), start.end(), 0);
+      for (const T& x : v) ++start[digit(x)];
+      if (start[digit(v[0])] == n) continue;  // one digit throughout: already in order
+      std::size_t at = 0;
+      for (std::size_t& s : start) {
+        const std::size_t count = s;
+        s = at;
+        at += count;
+      }
+      for (const T& x : v) scratch[start[digit(x)]++] = x;
+      v.swap(scratch);
+    }
+}
+
+// The bits a particle index below `particles` needs (0 for one particle).
+inline int index_bits(std::size_t particles) {
+  int bits = 0;
+  while (bits < 64 && (std::uint64_t(1) << bits) < particles) ++bits;
+  return bits;
+}
+
+}  // namespace pwcontact::screen
