@@ -16,36 +16,55 @@ namespace {
 
 struct Target {
   Isa isa;
-  const char* name;
+  const char* name;              // as isa_name gives it and PWCONTACT_ISA and parse_isa take it
   bool (*supported)() noexcept;  // by this CPU and its operating system
-  const kernels::KernelTable* kernels;
+  const kernels::KernelTable* kernels;  // null where this build has none (not x86-64)
 };
 
 bool always() noexcept { return true; }
 
-#if PWCONTACT_X86_KERNELS
 // GCC's __builtin_cpu_supports also checks that the operating system saves
 // the AVX and AVX-512 register state (XCR0), which a bare CPUID test misses.
+// (x86 only: a build without the x86 kernels asks nothing.)
 bool cpu_has_avx2() noexcept {
+#if PWCONTACT_X86_KERNELS
   return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#else
+  return false;
+#endif
 }
 bool cpu_has_avx512() noexcept {
+#if PWCONTACT_X86_KERNELS
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512cd") &&
          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("fma");
+#else
+  return false;
+#endif
 }
+
+#if PWCONTACT_X86_KERNELS
+constexpr const kernels::KernelTable* avx512_kernels = &kernels::kernel_table_avx512;
+constexpr const kernels::KernelTable* avx2_kernels = &kernels::kernel_table_avx2;
+constexpr const kernels::KernelTable* sse2_kernels = &kernels::kernel_table_sse2;
+#else
+constexpr const kernels::KernelTable* avx512_kernels = nullptr;
+constexpr const kernels::KernelTable* avx2_kernels = nullptr;
+constexpr const kernels::KernelTable* sse2_kernels = nullptr;
 #endif
 
-// Best first; the portable target last, supported everywhere.
+// Every target, best first, the portable one last (supported everywhere):
+// the one place that names them. A target this build has no kernels for
+// keeps its name (for isa_name, parse_isa and the error that it is not
+// supported) and is never supported.
 constexpr Target targets[] = {
-#if PWCONTACT_X86_KERNELS
-    {Isa::avx512, "avx512", cpu_has_avx512, &kernels::kernel_table_avx512},
-    {Isa::avx2, "avx2", cpu_has_avx2, &kernels::kernel_table_avx2},
-    {Isa::sse2, "sse2", always, &kernels::kernel_table_sse2},  // part of x86-64
-#endif
+    {Isa::avx512, "avx512", cpu_has_avx512, avx512_kernels},
+    {Isa::avx2, "avx2", cpu_has_avx2, avx2_kernels},
+    {Isa::sse2, "sse2", always, sse2_kernels},  // part of x86-64
     {Isa::fallback, "fallback", always, &kernels::kernel_table_fallback},
 };
 constexpr std::size_t target_count = sizeof targets / sizeof targets[0];
+constexpr const char* automatic_name = "auto";
 
 const Target* find_target(Isa isa) noexcept {
   for (const Target& t : targets)
@@ -60,7 +79,8 @@ const std::array<bool, target_count>& support() noexcept {
 #if PWCONTACT_X86_KERNELS
     __builtin_cpu_init();  // (asked once: possibly before libgcc's own initialiser has run)
 #endif
-    for (std::size_t k = 0; k < target_count; ++k) s[k] = targets[k].supported();
+    for (std::size_t k = 0; k < target_count; ++k)
+      s[k] = targets[k].kernels != nullptr && targets[k].supported();
     return s;
   }();
   return supported;
@@ -90,22 +110,25 @@ EnvironmentChoice& environment_choice() {
   return choice;
 }
 
+// "auto, avx512, avx2, sse2, fallback": what PWCONTACT_ISA may say.
+std::string every_name() {
+  std::string names = automatic_name;
+  for (const Target& t : targets) names += std::string(", ") + t.name;
+  return names;
+}
+
 }  // namespace
 
 const char* isa_name(Isa isa) noexcept {
-  if (isa == Isa::automatic) return "auto";
-  if (const Target* t = find_target(isa)) return t->name;
-  switch (isa) {  // targets this build has no kernels for
-    case Isa::sse2: return "sse2";
-    case Isa::avx2: return "avx2";
-    case Isa::avx512: return "avx512";
-    default: return "unknown";
-  }
+  if (isa == Isa::automatic) return automatic_name;
+  const Target* t = find_target(isa);
+  return t ? t->name : "unknown";
 }
 
 std::optional<Isa> parse_isa(std::string_view name) noexcept {
-  for (Isa isa : {Isa::automatic, Isa::sse2, Isa::avx2, Isa::avx512, Isa::fallback})
-    if (name == isa_name(isa)) return isa;
+  if (name == automatic_name) return Isa::automatic;
+  for (const Target& t : targets)
+    if (name == t.name) return t.isa;
   return std::nullopt;
 }
 
@@ -127,8 +150,8 @@ Isa resolve_isa(Isa requested) {
   if (requested == Isa::automatic) {
     const EnvironmentChoice& env = environment_choice();
     if (!env.invalid_value.empty())
-      throw std::invalid_argument("PWCONTACT_ISA=" + env.invalid_value +
-                                  " is not one of auto, sse2, avx2, avx512, fallback");
+      throw std::invalid_argument("PWCONTACT_ISA=" + env.invalid_value + " is not one of " +
+                                  every_name());
     requested = env.isa.value_or(Isa::automatic);
   }
   if (requested == Isa::automatic) {
@@ -150,7 +173,7 @@ int simd_lanes(Isa isa, bool single_precision) {
 
 const kernels::KernelTable& kernels::kernels_for(Isa isa) noexcept {
   const Target* t = find_target(isa);
-  return t ? *t->kernels : kernel_table_fallback;
+  return t && t->kernels ? *t->kernels : kernel_table_fallback;
 }
 
 }  // namespace pwcontact

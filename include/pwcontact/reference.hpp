@@ -48,7 +48,14 @@ namespace detail {
 // Q = L D L^T for a symmetric 3x3 matrix given as 6 numbers (upper triangle,
 // row-major, eq. 3), L unit lower triangular. No square roots, and
 // r^T Q^-1 r = sum y_i^2 / d_i with y = L^-1 r is a sum of positive terms.
-// For a symmetric matrix, Q is positive definite iff all d_i > 0.
+// For a symmetric matrix, Q is positive definite iff all d_i > 0 (eq. 38).
+//
+// The kernels' copy is Ldlt, factor, forward, backward,
+// inverse_quadratic_form and evaluate in src/kernels/simd_math.hpp: the same
+// operations in the same order, except that the kernels keep 1/d_i and
+// multiply by it where this divides by d_i (fewer divisions per lane; here
+// each quotient is rounded once). tests/shared_math_test.cpp holds the two
+// copies together bit for bit.
 template <class T>
 struct Ldlt3 {
   T d0, d1, d2;
@@ -251,7 +258,11 @@ T max_diagonal(const T q[6]) {
 // the end, where its own overflow or underflow is reported (out_of_range).
 //   Q = 2^(2 q_exponent) q,  r12 = 2^r_exponent r,
 //   mu^2(r12, Q1, Q2) = 2^(2 (r_exponent - q_exponent)) mu^2(r, q1, q2).
-// Coincident centres (r12 = 0) keep r = 0 and r_exponent = 0.
+// Coincident centres (r12 = 0) keep r = 0 and r_exponent = 0 (eq. 36).
+// The kernels' copies, nondimensionalise (src/kernels/lane_blocks.hpp) and
+// pack_unfinished (contact_kernel.hpp), scale r and Q by one power t, Q's
+// largest diagonal entry into [1, 4): their Q is this one's times 4,
+// exactly (tests/shared_math_test.cpp).
 template <class T>
 struct ScaledPair {
   T r[3], q1[6], q2[6];

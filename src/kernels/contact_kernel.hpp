@@ -165,6 +165,7 @@ void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status
     In t = 1;
     // (As load_pairs: always when narrowing, else only out of the safe range.)
     const bool narrowing = !std::is_same<T, In>::value;
+    // (The scalar copy of nondimensionalise, lane_blocks.hpp: the same t.)
     if ((narrowing || !(largest >= In(KernelTolerance<T>::safe_scale_low) &&
                         largest <= In(KernelTolerance<T>::safe_scale_high))) &&
         largest > 0 && largest < std::numeric_limits<In>::infinity()) {

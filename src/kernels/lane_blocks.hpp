@@ -229,6 +229,13 @@ PWCONTACT_INLINE auto slopes_in_range(const B& s1, const B& s2) {
          (smallest >= largest * B(Tolerance::slope_ratio));
 }
 
+// The power-of-two scaling (eq. 36) has two other copies: the scalar one in
+// pack_unfinished (contact_kernel.hpp), for the lanes it packs, and the
+// reference path's detail::ScaledPair (include/pwcontact/reference.hpp),
+// which brings the largest diagonal entry into [1/4, 1) instead of [1, 4)
+// (its Q is this one's over 4, exactly) and scales r by a power of its own.
+// tests/shared_math_test.cpp holds the three together bit for bit.
+//
 // Nondimensionalises by a power of two (exact): r -> r t, Q -> Q t^2 with
 // t = 1 / 2^floor(log2 sqrt(largest diagonal)); mu^2 is invariant. Only done
 // when some lane's scale is far from 1, where products of entries could
@@ -244,6 +251,9 @@ PWCONTACT_INLINE B nondimensionalise(PairLanes<B>& p, bool always = false) {
   B t;
   if (xsimd::any((largest > B(0)) & (largest < B(std::numeric_limits<T>::min())))) {
     // A subnormal diagonal (rare): its exponent bits do not give its scale.
+    // (For the lane whose largest entry it is, t^2 >= 2^1024 overflows: its
+    // Q becomes infinite, it fails all_finite and goes to the reference path.
+    // The other lanes of the register get the t of the exponent bits.)
     const B power = xsimd::bitwise_and(xsimd::sqrt(largest), infinity);  // exponent bits only
     t = xsimd::select((power > B(0)) & (power < infinity), B(1) / power, B(1));
   } else {

@@ -16,7 +16,11 @@
 // A bound decides a lane when it clears cutoff^2 by more than its rounding
 // error, estimated as a multiple of eps times the element growth of the
 // factorisations behind it (the float kernels were measured below ~100 growth
-// eps; the margin is 256 growth eps; eq. 40).
+// eps; the margin is 256 growth eps; eq. 40); bounds that have met within
+// their margins leave the lane to the reference path (eq. 45). Each bound
+// and the decision are pure functions of an evaluation and a bracket
+// (extent_bounds, bounds_after, certificate_decision); OverlapBlock keeps
+// their inputs as lane state between passes.
 #pragma once
 
 #include "kernels/target.hpp"
@@ -44,6 +48,108 @@ template <class T>
 inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e6) : T(256);
 // How far ahead the prefilter asks for its inputs, in blocks (measured).
 inline constexpr std::size_t prefilter_prefetch_blocks = 8;
+
+// ---------------------------------------------------------------------------
+// The certificates as pure functions of an evaluation and a bracket: the
+// bounds on mu^2 each piece of information gives, and the decision they
+// make. OverlapBlock keeps their inputs and results as its lane state.
+
+// Bounds on mu^2 with their margins applied, and the margin they carry (the
+// largest of every bound folded in so far, eq. 40).
+template <class B>
+struct CertifiedBounds {
+  B lower;   // mu^2 >= lower
+  B upper;   // mu^2 <= upper
+  B margin;  // relative rounding allowance of the computed bounds
+};
+
+// f and g = -f' at the ends of the bracket [lo, hi]: g_lo < 0 < g_hi.
+template <class B>
+struct BracketEnds {
+  B f_lo, g_lo, f_hi, g_hi;
+};
+
+// The margin of the extents' bounds (eq. 40): the slopes carry the growth of
+// their factorisations, the support extents H_i = r^T Qi r the ratio of
+// |r|^T |Qi| |r| to their value.
+template <class B>
+PWCONTACT_INLINE B extents_margin(const PairLanes<B>& p, const Ldlt<B>& f1, const Ldlt<B>& f2,
+                                  const B& h1, const B& h2) {
+  using T = typename B::value_type;
+  B abs_r[3];
+  for (int k = 0; k < 3; ++k) abs_r[k] = xsimd::abs(p.r[k]);
+  B abs_q1[6], abs_q2[6];
+  for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
+  const B spread =
+      xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2);
+  return B(certificate_margin_per_growth<T>) *
+         xsimd::max(xsimd::max(growth(f1, p.q1), growth(f2, p.q2)), spread);
+}
+
+// Before any evaluation, from the extents along r (eqs. 31, 32): the
+// support extents bound mu^2 from below by |r|^4 / (sqrt(H1) + sqrt(H2))^2
+// with H_i = r^T Qi r (rr = |r|^2), the radial extents from above by
+// `radial` (eq. 31, squared, formed by the caller from its slopes). The
+// margin is eq. 40's (accurate pass) or eq. 41's (cheap pass). Coincident
+// centres (r = 0) have mu^2 = 0 (eq. 35): upper 0.
+template <class B>
+PWCONTACT_INLINE CertifiedBounds<B> extent_bounds(const B& rr, const B& h1, const B& h2,
+                                                  const B& radial, const B& margin,
+                                                  const typename B::batch_bool_type& coincident) {
+  const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
+  const B lower = rr * rr / (support * support) * (B(1) - margin);
+  const B upper = radial * (B(1) + margin);
+  return {lower, xsimd::select(coincident, B(0), upper), margin};
+}
+
+// The bracket ends after evaluation e, as the safeguarded step narrows the
+// bracket (eq. 20: g > 0 makes lambda the upper end, g < 0 the lower).
+template <class B>
+PWCONTACT_INLINE BracketEnds<B> ends_after(const BracketEnds<B>& ends, const Evaluation<B>& e) {
+  const auto above = e.g > B(0), below = e.g < B(0);
+  return {xsimd::select(below, e.f, ends.f_lo), xsimd::select(below, e.g, ends.g_lo),
+          xsimd::select(above, e.f, ends.f_hi), xsimd::select(above, e.g, ends.g_hi)};
+}
+
+// Where the tangents of the concave f at the bracket ends cross, a bound on
+// mu^2 from above (eq. 29): f_lo - g_lo (x - lo) = f_hi - g_hi (x - hi).
+template <class B>
+PWCONTACT_INLINE B tangent_crossing(const B& lo, const B& hi, const BracketEnds<B>& ends) {
+  const B x = (ends.f_hi - ends.f_lo + ends.g_hi * hi - ends.g_lo * lo) / (ends.g_hi - ends.g_lo);
+  return ends.f_lo - ends.g_lo * (x - lo);
+}
+
+// The bounds after evaluation e, with [lo, hi] and `ends` already narrowed
+// by it: f(lambda) from below (eq. 27), the tangents' crossing from above
+// (eq. 29), each with the margin, widened to the growth of Q(lambda)'s
+// factorisation (eq. 40).
+template <class B>
+PWCONTACT_INLINE CertifiedBounds<B> bounds_after(const CertifiedBounds<B>& bounds,
+                                                 const Evaluation<B>& e, const B& lo, const B& hi,
+                                                 const BracketEnds<B>& ends) {
+  using T = typename B::value_type;
+  const B margin =
+      xsimd::max(bounds.margin, B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
+  const B tangent = tangent_crossing(lo, hi, ends);
+  return {xsimd::max(bounds.lower, e.f * (B(1) - margin)),
+          xsimd::min(bounds.upper, tangent * (B(1) + margin)), margin};
+}
+
+// What certified bounds decide against the cutoff mu_c^2 (eq. 45).
+template <class B>
+struct CertificateDecision {
+  typename B::batch_bool_type overlapping;  // mu^2 < cutoff: upper below it
+  typename B::batch_bool_type apart;        // mu^2 >= cutoff: lower at or above it
+  typename B::batch_bool_type settled;      // the bounds have met within their rounding: more
+                                            // evaluations would hardly narrow them
+};
+
+template <class B>
+PWCONTACT_INLINE CertificateDecision<B> certificate_decision(const CertifiedBounds<B>& bounds,
+                                                             const B& cutoff) {
+  return {bounds.upper < cutoff, bounds.lower >= cutoff,
+          bounds.upper <= bounds.lower * (B(1) + B(8) * bounds.margin)};
+}
 
 // What an undecided lane keeps between passes besides its pair: its slots
 // in the kept arrays, after the pair's components.
@@ -102,24 +208,10 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       f_hi_[u] = B(0);
       g_hi_[u] = s1;
 
-      // Rounding: the slopes carry the growth of their factorisations; the
-      // support extents r^T Qi r the ratio of |Q||r||r| to their value.
-      B abs_r[3];
-      for (int k = 0; k < 3; ++k) abs_r[k] = xsimd::abs(p.r[k]);
       const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
-      B abs_q1[6], abs_q2[6];
-      for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
-      const B spread =
-          xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2);
-      margin_[u] = B(certificate_margin_per_growth<T>) *
-                   xsimd::max(xsimd::max(growth(f1, p.q1), growth(f2, p.q2)), spread);
-      const B rr = dot3(p.r, p.r);
-      const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
-      const B radial = B(1) / (B(1) / root0 + B(1) / root1);
-      lower_[u] = rr * rr / (support * support) * (B(1) - margin_[u]);
-      upper_[u] = radial * radial * (B(1) + margin_[u]);
-      // Coincident centres: mu^2 = 0 < cutoff^2.
-      upper_[u] = xsimd::select(coincident, B(0), upper_[u]);
+      const B radial = B(1) / (B(1) / root0 + B(1) / root1);  // eq. 31, from the slopes
+      set_bounds(u, extent_bounds(dot3(p.r, p.r), h1, h2, radial * radial,
+                                  extents_margin(p, f1, f2, h1, h2), coincident));
       live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter);
     }
     // The lanes left take their first evaluation right away, before any
@@ -152,18 +244,13 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const B rr = dot3(p.r, p.r);
       live_[u] = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
                  conditioned & prefilter_in_range(t1, t2, rr);
-      const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);
-      // Radial extents: mu^2 <= 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 with
-      // s_i = n_i / det_i, n_i = r^T adj(Qi) r; support extents:
-      // mu^2 >= |r|^4 / (sqrt(h1) + sqrt(h2))^2.
+      const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);  // eq. 41
+      // The radial bound (eq. 31) with s_i = n_i / det_i, n_i = r^T adj(Qi) r:
+      // 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 = n1 n2 / (sqrt(n1 det2) + sqrt(n2 det1))^2.
       const B n1 = a1.form(p.r), n2 = a2.form(p.r);
       const B extents = xsimd::sqrt(n1 * a2.det) + xsimd::sqrt(n2 * a1.det);
       const B radial = n1 * n2 / (extents * extents);
-      const B support = xsimd::sqrt(h1) + xsimd::sqrt(h2);
-      lower_[u] = rr * rr / (support * support) * (B(1) - margin);
-      upper_[u] = radial * (B(1) + margin);
-      // Coincident centres: mu^2 = 0 < cutoff^2.
-      upper_[u] = xsimd::select(rr == B(0), B(0), upper_[u]);
+      set_bounds(u, extent_bounds(rr, h1, h2, radial, margin, rr == B(0)));
       live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter, true);
       if (xsimd::none(live_[u])) continue;
 
@@ -179,8 +266,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       g_lo_[u] = -slope0;
       f_hi_[u] = B(0);
       g_hi_[u] = slope1;
-      margin_[u] = margin;
-      tighten(u);
+      tighten(u);  // (with the margin set above: the prefilter's, eq. 41)
       counters_.lane_evaluations += at_[u].real;
       decide_only(u, out, &ChunkCounters::decided_by_certificate);
     }
@@ -236,24 +322,29 @@ class OverlapBlock : public LaneGroups<Arch, T> {
            (t_max >= smallest) & (t_max <= largest);
   }
 
-  // One evaluation at lambda: f bounds mu^2 from below, and the tangents of
-  // the concave f at the bracket ends, where they cross, from above.
+  // One evaluation at lambda, a safeguarded step, and the bounds it gives
+  // (bounds_after).
   PWCONTACT_INLINE void tighten(int u) {
     const Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
-    const M above = e.g > B(0), below = e.g < B(0);
-    f_hi_[u] = xsimd::select(above, e.f, f_hi_[u]);
-    g_hi_[u] = xsimd::select(above, e.g, g_hi_[u]);
-    f_lo_[u] = xsimd::select(below, e.f, f_lo_[u]);
-    g_lo_[u] = xsimd::select(below, e.g, g_lo_[u]);
+    const BracketEnds<B> ends = ends_after(bracket_ends(u), e);
+    f_lo_[u] = ends.f_lo;
+    g_lo_[u] = ends.g_lo;
+    f_hi_[u] = ends.f_hi;
+    g_hi_[u] = ends.g_hi;
     this->advance(e, u);
-    margin_[u] = xsimd::max(margin_[u], B(certificate_margin_per_growth<T>) * growth(e.ldlt, e.q));
-    // Where the tangents at lo and hi cross: f_lo - g_lo (x - lo) =
-    // f_hi - g_hi (x - hi), with g_lo < 0 < g_hi.
-    const B x =
-        (f_hi_[u] - f_lo_[u] + g_hi_[u] * hi_[u] - g_lo_[u] * lo_[u]) / (g_hi_[u] - g_lo_[u]);
-    const B tangent = f_lo_[u] - g_lo_[u] * (x - lo_[u]);
-    lower_[u] = xsimd::max(lower_[u], e.f * (B(1) - margin_[u]));
-    upper_[u] = xsimd::min(upper_[u], tangent * (B(1) + margin_[u]));
+    set_bounds(u, bounds_after(bounds(u), e, lo_[u], hi_[u], ends));
+  }
+
+  PWCONTACT_INLINE BracketEnds<B> bracket_ends(int u) const {
+    return {f_lo_[u], g_lo_[u], f_hi_[u], g_hi_[u]};
+  }
+  PWCONTACT_INLINE CertifiedBounds<B> bounds(int u) const {
+    return {lower_[u], upper_[u], margin_[u]};
+  }
+  PWCONTACT_INLINE void set_bounds(int u, const CertifiedBounds<B>& bounds) {
+    lower_[u] = bounds.lower;
+    upper_[u] = bounds.upper;
+    margin_[u] = bounds.margin;
   }
 
   // Writes the live lanes' answers (decided or not: status ok or
@@ -262,9 +353,9 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   // which writes every real lane.
   PWCONTACT_INLINE M decide_only(int u, const OverlapSpan& out, std::uint64_t ChunkCounters::*count,
                                  bool every_real_lane = false) {
-    const B cutoff(cutoff_);
-    const M overlapping = live_[u] & (upper_[u] < cutoff);
-    const M decided = overlapping | (live_[u] & (lower_[u] >= cutoff));
+    const CertificateDecision<B> decision = certificate_decision(bounds(u), B(cutoff_));
+    const M overlapping = live_[u] & decision.overlapping;
+    const M decided = overlapping | (live_[u] & decision.apart);
     const LanePositions& at = at_[u];
     const M written = every_real_lane ? this->real_lanes(u) : live_[u];
     write_flags<Arch, T>(out.overlap, at, written, overlapping, 1, 0);
@@ -280,8 +371,8 @@ class OverlapBlock : public LaneGroups<Arch, T> {
                                std::uint64_t ChunkCounters::*count) {
     const M decided = decide_only(u, out, count);
     // Bounds that have met within their rounding straddle the cutoff: more
-    // iterations would not decide the lane, the reference path will.
-    const M undecidable = upper_[u] <= lower_[u] * (B(1) + B(8) * margin_[u]);
+    // iterations would hardly decide the lane, the reference path will (eq. 45).
+    const M undecidable = certificate_decision(bounds(u), B(cutoff_)).settled;
     if (keep) {
       B values[OverlapKept<T>::arrays];
       for (int k = 0; k < pair_components; ++k) values[k] = component(pair_[u], k);

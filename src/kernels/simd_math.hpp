@@ -34,7 +34,14 @@ inline constexpr bool is_avx512 = std::is_base_of<xsimd::avx512f, Arch>::value;
 
 // Q = L D L^T with L unit lower triangular, the reciprocal pivots kept since
 // every solve divides by them. rᵀQ⁻¹r = Σ yᵢ²/dᵢ (y = L⁻¹r) is then a sum of
-// positive terms, and Q is positive definite iff every dᵢ > 0.
+// positive terms, and Q is positive definite iff every dᵢ > 0 (eq. 38).
+//
+// The reference path's copy is detail::Ldlt3 (include/pwcontact/reference.hpp,
+// with its forward, backward, inverse_quadratic_form and evaluate): the same
+// operations in the same order, except that it divides by dᵢ where these
+// multiply by 1/dᵢ (one division per pivot here, a division per use there;
+// a / d and a (1/d) differ by a rounding unless d is a power of two).
+// tests/shared_math_test.cpp holds the two copies together bit for bit.
 template <class B>
 struct Ldlt {
   B d0, d1, d2;
@@ -195,7 +202,8 @@ struct PairLanes {
   B q2[6];
 };
 
-// Everything one evaluation at lambda computes. Callers use what they need;
+// Everything one evaluation at lambda computes (the reference path's copy:
+// detail::evaluate, see Ldlt above). Callers use what they need;
 // the rest is dead code the compiler removes after inlining.
 template <class B>
 struct Evaluation {
