@@ -836,6 +836,26 @@ TEST(Screen, ThePairsAndTheirOrderDoNotDependOnTheThreadCount) {
   EXPECT_EQ(one.mu2, two.mu2);
 }
 
+// Large enough that the cell lists are built by several chunks in parallel
+// (one per thread, from 16,384 particles a chunk), with several size
+// classes: the pairs found and their mu^2 must be those of one thread.
+TEST(Screen, CellListsBuiltInParallelGiveTheOneThreadAnswer) {
+  const SceneSpec spec{50000, 0.3, 3, 0.05, 0.6, 26.0, true, 9};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  ScreenedPairs one;
+  const pwcontact::ScreenReport report = screen(s, box, 1.1, one, true, 1);
+  EXPECT_GT(report.size_classes, 2u);
+  EXPECT_GT(one.size(), 10000u);
+  for (int threads : {2, 3}) {
+    ScreenedPairs many;
+    screen(s, box, 1.1, many, true, threads);
+    EXPECT_EQ(one.i, many.i) << threads << " threads";
+    EXPECT_EQ(one.j, many.j) << threads << " threads";
+    EXPECT_EQ(one.mu2, many.mu2) << threads << " threads";
+  }
+}
+
 TEST(Screen, APeriodicBoxTooSmallForTheCutoffIsAnError) {
   ParticleStore s;
   s.add({0, 0, 0}, pwcontact::sphere(1.0));

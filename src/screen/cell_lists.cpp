@@ -175,12 +175,12 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
     lists.grids.push_back(std::move(grid));
   }
-  for (std::size_t i = 0; i < n; ++i) size_class[i] = std::uint8_t(compact[size_class[i]]);
 
   // Counting sort of each class's members by cell, in particle order.
   std::vector<std::uint32_t> cell(n);
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
+    size_class[i] = std::uint8_t(compact[size_class[i]]);  // (from here on: its grid)
     const ClassGrid& grid = lists.grids[size_class[i]];
     const double x[3] = {particles.centre(0)[i], particles.centre(1)[i], particles.centre(2)[i]};
     double u[3];
@@ -192,28 +192,61 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
                                 std::size_t(grid.cells[2]) +
                             std::size_t(c));
   }
-  for (ClassGrid& grid : lists.grids) {
-    const std::size_t cells = std::size_t(grid.cells[0]) * grid.cells[1] * grid.cells[2];
-    grid.cell_start.assign(cells + 1, 0);
+  // The members' places in parallel, as the serial counting sort gives
+  // them (by cell, then by particle index): the particles in `parts`
+  // contiguous chunks, each counted into a histogram of its own over every
+  // grid's cells; a prefix over the cells, chunk after chunk within each
+  // cell, turns the counts into each chunk's first place in each cell; each
+  // chunk then places its particles. (At most 8 chunks, of 16,384
+  // particles or more: a histogram takes 4 bytes a cell, up to 2 cells a
+  // member.)
+  const int parts =
+      int(std::min<std::size_t>({std::size_t(std::max(threads, 1)), 8, n / 16384 + 1}));
+  std::vector<std::size_t> first_cell(lists.grids.size() + 1, 0);  // of each grid, all grids'
+  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
+    const ClassGrid& grid = lists.grids[g];
+    first_cell[g + 1] = first_cell[g] + std::size_t(grid.cells[0]) * grid.cells[1] * grid.cells[2];
   }
-  for (std::size_t i = 0; i < n; ++i) ++lists.grids[size_class[i]].cell_start[cell[i] + 1];
-  for (ClassGrid& grid : lists.grids) {
-    for (std::size_t c = 1; c < grid.cell_start.size(); ++c)
-      grid.cell_start[c] += grid.cell_start[c - 1];
+  std::vector<std::vector<std::uint32_t>> place(static_cast<std::size_t>(parts));
+  auto chunk = [&](int p) { return n * std::size_t(p) / std::size_t(parts); };
+#pragma omp parallel for num_threads(parts) schedule(static, 1)
+  for (int p = 0; p < parts; ++p) {
+    std::vector<std::uint32_t>& counts = place[std::size_t(p)];
+    counts.assign(first_cell.back(), 0);
+    for (std::size_t i = chunk(p); i < chunk(p + 1); ++i)
+      ++counts[first_cell[size_class[i]] + cell[i]];
+  }
+  for (std::size_t g = 0; g < lists.grids.size(); ++g) {
+    ClassGrid& grid = lists.grids[g];
+    const std::size_t cells = first_cell[g + 1] - first_cell[g];
+    grid.cell_start.resize(cells + 1);
+    std::uint32_t at = 0;
+    for (std::size_t c = 0; c < cells; ++c) {
+      grid.cell_start[c] = at;
+      for (std::vector<std::uint32_t>& counts : place) {
+        const std::uint32_t here = counts[first_cell[g] + c];
+        counts[first_cell[g] + c] = at;
+        at += here;
+      }
+    }
+    grid.cell_start[cells] = at;
     // (In huge pages: 160 bytes a member, filled in parallel right after.)
-    reserve_in_huge_pages(grid.coarse, grid.cell_start.back());
-    reserve_in_huge_pages(grid.member, grid.cell_start.back());
-    grid.coarse.resize(grid.cell_start.back());
-    grid.member.resize(grid.cell_start.back());
+    reserve_in_huge_pages(grid.coarse, at);
+    reserve_in_huge_pages(grid.member, at);
+    grid.coarse.resize(at);
+    grid.member.resize(at);
   }
-  std::vector<std::vector<std::uint32_t>> next(lists.grids.size());
-  for (std::size_t g = 0; g < lists.grids.size(); ++g)
-    next[g].assign(lists.grids[g].cell_start.begin(), lists.grids[g].cell_start.end() - 1);
   // cell[i] becomes particle i's place among its class's members.
-  for (std::size_t i = 0; i < n; ++i) cell[i] = next[size_class[i]][cell[i]]++;
-    // The copies in cell order, read in particle order (streaming reads,
-    // scattered writes of three cache lines per particle: measured faster than
-    // gathering them in cell order).
+#pragma omp parallel for num_threads(parts) schedule(static, 1)
+  for (int p = 0; p < parts; ++p) {
+    std::vector<std::uint32_t>& next = place[std::size_t(p)];
+    for (std::size_t i = chunk(p); i < chunk(p + 1); ++i)
+      cell[i] = next[first_cell[size_class[i]] + cell[i]]++;
+  }
+  std::vector<std::vector<std::uint32_t>>().swap(place);
+  // The copies in cell order, read in particle order (streaming reads,
+  // scattered writes of three cache lines per particle: measured faster than
+  // gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     ClassGrid& grid = lists.grids[size_class[i]];
