@@ -110,9 +110,8 @@ class Configuration:
         return self.settings_name() + "/threads:%d" % self.threads
 
     def with_threads(self, threads):
-        c = Configuration(self.path, self.family, self.isa, self.iterations, threads,
-                          self.formulation, self.accuracy)
-        return c
+        return Configuration(self.path, self.family, self.isa, self.iterations, threads,
+                             self.formulation, self.accuracy)
 
 
 # ---------------------------------------------------------------------------
@@ -349,7 +348,7 @@ THREAD_SCALING_TARGETS = (
 
 def target_configuration(configuration, default_isa):
     """The target's configuration on this run's default instruction set."""
-    c = configuration.with_threads(configuration.threads)
+    c = configuration.with_threads(configuration.threads)  # a copy
     if c.isa == "auto":
         c.isa = default_isa
     return c
