@@ -49,17 +49,6 @@ std::vector<long double> checked_oracle_mu2(const std::vector<long double>& orac
   return oracle;
 }
 
-// Uniform in [0, 1) from the top 53 bits, as pwcontact::random_pairs draws.
-double uniform01(std::mt19937_64& engine) { return double(engine() >> 11) * 0x1.0p-53; }
-
-// The pair with r12 multiplied by `scale`, rounded once to double.
-void set_scaled(PairBatch<double>& out, std::size_t i, const PairBatch<double>& from, std::size_t j,
-                long double scale) {
-  ScalarPair p = scalar_pair(from, j);
-  for (double& x : p.r12) x = double(x * scale);
-  out.set(i, p.r12, p.q1, p.q2);
-}
-
 }  // namespace
 
 ScalarPair scalar_pair(const PairBatch<double>& pairs, std::size_t i) {
@@ -115,35 +104,14 @@ PairBatch<double> scene_pairs(std::size_t n, std::uint64_t seed) {
   PairBatch<double> scene(n);
 #pragma omp parallel for schedule(dynamic, 1024)
   for (std::size_t i = 0; i < n; ++i) {
-    const ScalarPair p = scalar_pair(shapes, i);
+    ScalarPair p = scalar_pair(shapes, i);
     const double mu2 = contact_function<double>(p.r12, p.q1, p.q2).mu2;
     // mu scales with |r12|; coincident centres (probability ~2^-53) stay as they are.
     const long double scale = mu2 > 0 ? target_mu[i] / std::sqrt((long double)mu2) : 1;
-    set_scaled(scene, i, shapes, i, scale);
+    scale_r12(p.r12, scale);
+    scene.set(i, p.r12, p.q1, p.q2);
   }
   return scene;
-}
-
-PairBatch<double> near_tangent_pairs(const PairBatch<double>& base,
-                                     const std::vector<long double>& oracle, std::size_t n,
-                                     std::uint64_t seed) {
-  // Evenly spread over the base, so that every part of a structured family
-  // (pw85: distances, directions, spheroids) is represented.
-  std::vector<std::size_t> chosen;
-  const std::size_t taken = std::min(n, base.size());
-  for (std::size_t k = 0; k < taken; ++k) {
-    const std::size_t i = k * base.size() / taken;
-    if (oracle[i] > 0) chosen.push_back(i);  // false for NaN
-  }
-
-  std::mt19937_64 engine(seed);
-  PairBatch<double> out(chosen.size());
-  for (std::size_t k = 0; k < chosen.size(); ++k) {
-    const long double eps = std::pow(10.0L, -12 + 10 * (long double)uniform01(engine));
-    const long double target = engine() % 2 ? 1 + eps : 1 - eps;
-    set_scaled(out, k, base, chosen[k], std::sqrt(target / oracle[chosen[k]]));
-  }
-  return out;
 }
 
 PairSet& Families::family(Family f) {

@@ -126,16 +126,8 @@ RandomFamily extreme_family();
 // reference path; the oracle of the result is computed afresh.
 PairBatch<double> scene_pairs(std::size_t n, std::uint64_t seed);
 
-// Near-tangent pairs: `n` pairs of `base` (evenly spread over it), each with
-// r12 scaled so that mu^2 = 1 +- eps, eps log-uniform in [1e-12, 1e-2] and
-// either sign equally likely. The scale comes from `oracle`, base's long
-// double mu^2 (mu^2 grows with |r12|^2); pairs the oracle could not solve, or
-// with coincident centres, are skipped.
-PairBatch<double> near_tangent_pairs(const PairBatch<double>& base,
-                                     const std::vector<long double>& oracle, std::size_t n,
-                                     std::uint64_t seed);
-
-// The families, and one near-tangent set per family.
+// The families, and one near-tangent set per family (near_tangent_pairs of
+// fixtures/families.hpp, from the family's long double oracle).
 class Families {
  public:
   explicit Families(FamilySizes sizes) : sizes_(sizes) {}

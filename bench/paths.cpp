@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "brent_baseline.hpp"
-#include "measurement.hpp"
+#include "counters.hpp"
 #include "pwcontact/reference.hpp"
 
 namespace pwcontact::bench {

@@ -58,7 +58,7 @@ struct AccuracyReport {
 // family's near-tangent set (batch paths).
 AccuracyReport measure_accuracy(const Configuration& c, Families& families, bool near_tangent);
 
-// The report as named counters (see measurement.hpp), absent figures left out.
+// The report as named counters (see counters.hpp), absent figures left out.
 std::map<std::string, double> accuracy_counters(const AccuracyReport& a);
 
 }  // namespace pwcontact::bench

@@ -1,7 +1,8 @@
 // pwcontact_bench: pairs per second and accuracy of every way pwcontact
 // computes the contact function mu^2, timed in one run against the existing
-// library's method (brent_baseline), and a closing summary of the ratios and
-// of the project's targets.
+// library's method (brent_baseline). The summary of the ratios and of the
+// project's targets is made from the JSON output by bench/report.py summary
+// (scripts/run.sh bench runs both).
 //
 // Benchmark names: <path>/<family>/isa:<isa>/iterations:<n>[/accuracy:high]/threads:<t>
 // for the batch paths and <path>/<family>/threads:1 for the scalar ones
@@ -10,7 +11,7 @@
 // Every benchmark reports items_per_second = pairs per second, in real time:
 // the batch path runs its own OpenMP threads, so CPU time would not compare
 // like with like. Accuracy counters are computed once per configuration,
-// outside the timed region, on the whole family (see measurement.hpp).
+// outside the timed region, on the whole family (see counters.hpp).
 //
 // The default sweep measures every fixed iteration count on the default
 // instruction set (isa:auto resolved: the best one, or PWCONTACT_ISA) with 1
@@ -22,13 +23,12 @@
 // every setting is pwcontact_trade's.
 // For the summary's medians, run with --benchmark_repetitions=5 (and
 // --benchmark_enable_random_interleaving=true on a noisy machine, so that a
-// burst of foreign load does not hit one configuration's repetitions only).
+// burst of foreign load does not hit one configuration's repetitions only),
+// and --benchmark_out=FILE --benchmark_out_format=json for the summary.
 #include <benchmark/benchmark.h>
 
-#include <cstdint>
 #include <cstdio>
 #include <iostream>
-#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -36,9 +36,7 @@
 #include "command_line.hpp"
 #include "configuration.hpp"
 #include "families.hpp"
-#include "measurement.hpp"
-#include "paths.hpp"
-#include "summary.hpp"
+#include "registration.hpp"
 
 namespace pwcontact::bench {
 namespace {
@@ -69,7 +67,10 @@ const char* const pwcontact_flags_help =
     "filters, e.g.\n"
     "  --benchmark_filter='(brent_baseline|batch_double)/random'\n"
     "  --benchmark_filter=pw85 --pwcontact_iterations=4,8,12,16,20,24  (pw85 needs more)\n"
-    "  --benchmark_filter=scene  (overlap answers against brent_baseline)\n";
+    "  --benchmark_filter=scene  (overlap answers against brent_baseline)\n"
+    "The summary (ratios to brent_baseline, thread scaling, targets) is bench/report.py's:\n"
+    "  pwcontact_bench --benchmark_out=bench.json --benchmark_out_format=json\n"
+    "  /usr/bin/python3 bench/report.py summary bench.json\n";
 
 void print_help() {
   benchmark::PrintDefaultHelp();
@@ -101,49 +102,6 @@ Settings parse_settings(int& argc, char** argv) {
 }
 
 // ---------------------------------------------------------------------------
-// Accuracy, once per configuration
-
-class Accuracies {
- public:
-  explicit Accuracies(Families& families) : families_(families) {}
-
-  const std::map<std::string, double>& of(const Configuration& c) {
-    // Batch results are bit for bit the same for every thread count: one
-    // entry per configuration serves all of them.
-    const std::string key = c.with_threads(1).name();
-    auto found = cache_.find(key);
-    if (found == cache_.end())
-      found = cache_.emplace(key, accuracy_counters(measure_accuracy(c, families_, true))).first;
-    return found->second;
-  }
-
- private:
-  Families& families_;
-  std::map<std::string, std::map<std::string, double>> cache_;
-};
-
-// ---------------------------------------------------------------------------
-// Timing
-
-void run_configuration(benchmark::State& state, const Configuration& c, Families& families,
-                       Accuracies& accuracies) {
-  const std::map<std::string, double>* counters = nullptr;
-  try {
-    counters = &accuracies.of(c);  // also builds the family, outside the timed region
-  } catch (const std::exception& e) {
-    state.SkipWithError(e.what());
-    return;
-  }
-  const PreparedRun run(c, families.family(c.family));
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(run());
-    benchmark::ClobberMemory();
-  }
-  state.SetItemsProcessed(state.iterations() * std::int64_t(run.pairs_per_call()));
-  for (const auto& [name, value] : *counters) state.counters[name] = value;
-}
-
-// ---------------------------------------------------------------------------
 // What is measured
 
 // The default sweep: the default settings with 1 thread on every instruction
@@ -156,6 +114,9 @@ bool in_default_sweep(const Configuration& c, Isa default_isa) {
   if (c.iterations != 0 && (c.family == Family::scene || is_overlap(c.path))) return false;
   return defaults || (c.isa == default_isa && (c.threads == 1 || c.iterations == 0));
 }
+
+// The families measured (their sizes: FamilySizes).
+const std::vector<Family> families_measured = {Family::random, Family::pw85, Family::scene};
 
 // The batch paths measured on each family: full answers on the random and pw85
 // families; overlap answers on the scene-like mix, with the full double answer
@@ -170,7 +131,7 @@ std::vector<Configuration> sweep(const Settings& settings, Isa default_isa) {
   std::vector<int> iterations = {0};
   iterations.insert(iterations.end(), settings.iterations.begin(), settings.iterations.end());
   std::vector<Configuration> out;
-  for (Family family : {Family::random, Family::pw85, Family::scene}) {
+  for (Family family : families_measured) {
     out.push_back({Path::brent_baseline, family});
     out.push_back({Path::scalar_reference, family});
     for (Path path : batch_paths(family))
@@ -190,30 +151,19 @@ std::vector<Configuration> sweep(const Settings& settings, Isa default_isa) {
 }
 
 int run(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv, print_help);
-  const Settings settings = parse_settings(argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  BenchmarkArguments arguments(argc, argv);
+  const std::string min_time =
+      arguments.last_value("benchmark_min_time").value_or(default_min_time);
+  benchmark::Initialize(&arguments.argc(), arguments.argv(), print_help);
+  const Settings settings = parse_settings(arguments.argc(), arguments.argv());
+  if (benchmark::ReportUnrecognizedArguments(arguments.argc(), arguments.argv())) return 1;
 
   const Isa default_isa = resolve_isa(Isa::automatic);
-  benchmark::AddCustomContext("pwcontact_default_isa", isa_name(default_isa));
-  benchmark::AddCustomContext("pwcontact_random_pairs", std::to_string(settings.sizes.generated));
-  benchmark::AddCustomContext("pwcontact_pw85_pairs", std::to_string(pw85_family_size));
-  benchmark::AddCustomContext("pwcontact_near_tangent_pairs",
-                              std::to_string(settings.sizes.near_tangent));
-
+  add_run_context({default_isa, settings.sizes, settings.threads, families_measured, min_time, {}});
   Families families(settings.sizes);
   Accuracies accuracies(families);
-  const std::vector<Configuration> configurations = sweep(settings, default_isa);
-  for (const Configuration& c : configurations)
-    benchmark::RegisterBenchmark(c.name().c_str(),
-                                 [c, &families, &accuracies](benchmark::State& state) {
-                                   run_configuration(state, c, families, accuracies);
-                                 })
-        ->UseRealTime()
-        ->Unit(benchmark::kMillisecond);
-
-  SummaryReporter reporter(benchmark::CreateDefaultDisplayReporter(), configurations, default_isa);
-  benchmark::RunSpecifiedBenchmarks(&reporter);
+  register_configurations(sweep(settings, default_isa), families, accuracies);
+  benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
 }

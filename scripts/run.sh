@@ -9,17 +9,21 @@
 #                                     on a copy of its seed corpus, two at a time (clang),
 #                                     with libFuzzer's SEED (1; 0 for a random one)
 #   bash scripts/run.sh tsan          the thread-safety tests under ThreadSanitizer (clang)
-#   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench)
+#   bash scripts/run.sh bench [args]  the benchmark (pwcontact_bench, Google Benchmark's flags
+#                                     and its own), then its summary from the JSON output
+#                                     (bench/report.py summary)
 #   bash scripts/run.sh screen-bench [args]  the screening benchmark (pwcontact_screen)
 #   bash scripts/run.sh moves-bench [args]   trial moves, Monte Carlo sweeps, neighbour lists
 #                                     and FCL (pwcontact_moves; installs libfcl-dev)
 #   bash scripts/run.sh python-bench [args]  what the Python binding costs against the C++
 #                                     calls (bench/python_overhead.py; --threads N)
-#   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade: CSV,
-#                                     Markdown and a gnuplot plot), labelled with the
-#                                     commit measured; to refresh the README's figures:
-#                                     --markdown=bench/results/trade.md
-#                                     --plot=bench/results/trade.png
+#   bash scripts/run.sh trade [args]  the speed/accuracy trade (pwcontact_trade), labelled
+#                                     with the commit measured, then its CSV, Markdown and
+#                                     gnuplot plot from the JSON output (bench/report.py
+#                                     trade: --csv=, --markdown=, --plot=, --no-plot, --label=
+#                                     go to it, every other flag to pwcontact_trade); to
+#                                     refresh the committed results: --csv=bench/results/trade.csv
+#                                     --markdown=bench/results/trade.md --plot=bench/results/trade.png
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -116,7 +120,22 @@ case "$job" in
   bench)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_bench
-    exec build/release/bench/pwcontact_bench "$@" ;;
+    # The run's JSON (unless the caller names another file) is what the
+    # summary is made from; after a JSON or CSV display the summary goes to
+    # standard error, so that standard output stays machine-readable.
+    json=build/release/bench/pwcontact_bench.json
+    summary_to=1
+    for a in "$@"; do
+      case "$a" in
+        --help) exec build/release/bench/pwcontact_bench --help ;;
+        --benchmark_list_tests|--benchmark_list_tests=true) exec build/release/bench/pwcontact_bench "$@" ;;
+        --benchmark_out=*) json="${a#--benchmark_out=}" ;;
+        --benchmark_format=json|--benchmark_format=csv) summary_to=2 ;;
+      esac
+    done
+    rm -f "$json"
+    build/release/bench/pwcontact_bench "--benchmark_out=$json" --benchmark_out_format=json "$@"
+    exec /usr/bin/python3 bench/report.py summary "$json" >&"$summary_to" ;;
   screen-bench)
     cmake --preset release >/dev/null
     cmake --build --preset release -j "$jobs" --target pwcontact_screen
@@ -134,6 +153,22 @@ case "$job" in
     cmake --build --preset release -j "$jobs" --target pwcontact_trade
     label="$(git log -1 --format='commit %h of %cs' 2>/dev/null || echo 'not a git checkout')"
     git diff --quiet HEAD -- src include 2>/dev/null || label="$label, with uncommitted changes"
-    # The caller's flags come last and override the label.
-    exec build/release/bench/pwcontact_trade "--label=$label" "$@" ;;
+    # The report's flags go to bench/report.py, every other to pwcontact_trade
+    # (with Google Benchmark's); the caller's come last and override the label.
+    json=build/release/bench/trade/trade.json
+    measure=()
+    report=()
+    for a in "$@"; do
+      case "$a" in
+        --help) exec build/release/bench/pwcontact_trade --help ;;
+        --csv=*|--markdown=*|--plot=*|--no-plot|--label=*) report+=("$a") ;;
+        --benchmark_out=*) json="${a#--benchmark_out=}"; measure+=("$a") ;;
+        *) measure+=("$a") ;;
+      esac
+    done
+    mkdir -p "$(dirname "$json")"
+    rm -f "$json"
+    build/release/bench/pwcontact_trade "--pwcontact_label=$label" "--benchmark_out=$json" \
+      --benchmark_out_format=json "${measure[@]}"
+    exec /usr/bin/python3 bench/report.py trade "$json" "${report[@]}" ;;
 esac

@@ -356,7 +356,7 @@ NearTangentPairs near_tangent_pairs(std::size_t n, std::uint64_t seed) {
     const double mu2 = pwcontact::contact_function<double>(r12, q1, q2).mu2;
     if (!(mu2 > 0)) continue;  // coincident centres stay overlapping wherever they are moved
     const double epsilon = (i % 2 ? 1 : -1) * magnitudes[(i / 2) % std::size(magnitudes)];
-    for (double& x : r12) x *= std::sqrt((1 + epsilon) / mu2);
+    pwcontact::scale_r12(r12, pwcontact::scale_to_mu2(mu2, 1 + epsilon));
     moved.push_back(r12, q1, q2);
     out.epsilon.push_back(epsilon);
   }

@@ -60,9 +60,8 @@ std::vector<ContactResult<long double>> fifty_digit_oracles(
 }
 
 Pair<double> scaled_to_mu2(const Pair<double>& p, long double mu2, long double target) {
-  const long double k = std::sqrt(target / mu2);
   Pair<double> out = p;
-  for (int i = 0; i < 3; ++i) out.r12[i] = double(k * p.r12[i]);
+  pwcontact::scale_r12(out.r12.data(), pwcontact::scale_to_mu2(mu2, target));
   return out;
 }
 
@@ -557,8 +556,6 @@ Eigen::Matrix3d random_rotation(std::mt19937_64& engine) {
                              a * std::cos(two_pi * u2), b * std::sin(two_pi * u3));
   return q.normalized().toRotationMatrix();
 }
-
-double uniform01(Engine& engine) { return double(engine() >> 11) * 0x1.0p-53; }
 
 double ordinary_axis(Engine& engine) { return 0.5 + 1.5 * uniform01(engine); }
 

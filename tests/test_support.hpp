@@ -128,7 +128,8 @@ std::vector<ContactResult<long double>> fifty_digit_oracles(const std::vector<Pa
 // The pair with r12 scaled by sqrt(target / mu2), mu2 being its exact
 // contact function: mu^2 is homogeneous of degree 2 in r12, so the new pair's
 // mu^2 is the target, up to the rounding of r12 to double (~1e-16 relative).
-// The scale factor is computed in long double.
+// The scale factor is computed in long double (pwcontact::scale_to_mu2 and
+// scale_r12, fixtures/families.hpp).
 Pair<double> scaled_to_mu2(const Pair<double>& p, long double mu2, long double target);
 
 // Pairs built at a known relative distance from tangency at a cutoff c:
@@ -401,8 +402,8 @@ Pair<double> swapped(const Pair<double>& p);
 // Random numbers that are the same on every platform (std:: distributions
 // are not).
 using Engine = std::mt19937_64;
-// Uniform in [0, 1).
-double uniform01(Engine& engine);
+// Uniform in [0, 1) (the fixtures' own).
+using pwcontact::uniform01;
 // Uniform in [0.5, 2]: a semi-axis of the random family.
 double ordinary_axis(Engine& engine);
 // Semi-axes a along the axes of a rotation (a random one from the engine).

@@ -2,9 +2,9 @@
 
 #include <omp.h>
 
-#include <algorithm>
 #include <charconv>
 #include <cstdio>
+#include <limits>
 #include <type_traits>
 
 #include "cli/text_output.hpp"
@@ -203,20 +203,6 @@ void add_block(Solution<T>& total, const Solution<T>& block) {
   total.seconds += block.seconds;
 }
 
-template <class To, class From>
-PairBatch<To> convert_pairs(const PairBatch<From>& pairs) {
-  PairBatch<To> out(pairs.size());
-  auto convert = [](const std::vector<From>& from, std::vector<To>& to) {
-    std::transform(from.begin(), from.end(), to.begin(), [](From x) { return To(x); });
-  };
-  for (int k = 0; k < 3; ++k) convert(pairs.r12(k), out.r12(k));
-  for (int k = 0; k < 6; ++k) {
-    convert(pairs.q1(k), out.q1(k));
-    convert(pairs.q2(k), out.q2(k));
-  }
-  return out;
-}
-
 template struct Solution<double>;
 template struct Solution<float>;
 template Solution<double> solve_batch(const PairBatch<double>&, const Request&,
@@ -226,7 +212,5 @@ template Solution<double> solve_reference(const PairBatch<double>&, const Reques
 template Solution<float> solve_reference(const PairBatch<float>&, const Request&, int);
 template void add_block(Solution<double>&, const Solution<double>&);
 template void add_block(Solution<float>&, const Solution<float>&);
-template PairBatch<float> convert_pairs(const PairBatch<double>&);
-template PairBatch<double> convert_pairs(const PairBatch<float>&);
 
 }  // namespace pwcontact::cli

@@ -3,11 +3,11 @@
 #pragma once
 
 #include <cstdint>
-#include <limits>
 #include <string>
 #include <vector>
 
 #include "cli/command_line.hpp"
+#include "fixtures/families.hpp"
 #include "pwcontact/batch.hpp"
 
 namespace pwcontact::cli {
@@ -70,13 +70,9 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
 template <class T>
 void add_block(Solution<T>& total, const Solution<T>& block);
 
-// The same pairs in another floating type. From double to float, values
-// beyond float range become +-inf (IEEE 754 rounding), which the solvers
-// answer with status non_finite_input.
-template <class To, class From>
-PairBatch<To> convert_pairs(const PairBatch<From>& pairs);
-
-static_assert(std::numeric_limits<float>::is_iec559 && std::numeric_limits<double>::is_iec559,
-              "convert_pairs relies on IEEE 754 overflow to infinity");
+// The same pairs in another floating type: pwcontact::convert_pairs
+// (fixtures/families.hpp), whose double -> float rounding sends values beyond
+// float range to +-inf, which the solvers answer with status non_finite_input.
+using pwcontact::convert_pairs;
 
 }  // namespace pwcontact::cli
