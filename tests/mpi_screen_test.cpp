@@ -209,6 +209,9 @@ int main(int argc, char** argv) {
     check(random_scene("open", Box::open(), 3000, {26, 22, 24}, 1.0, 1, 12), 1.2, true);
     const Box tilted = Box::triclinic(24, 22, 20, 0.3, -0.2, 0.25);
     check(random_scene("triclinic", tilted, 2500, {30, 24, 20}, 1.0, 1, 13), 1.1, true);
+    check(random_scene("triclinic, 2 cells per axis", Box::triclinic(6, 6.5, 6, 0.3, -0.2, 0.25),
+                       150, {6, 6.5, 6}, 0.8, 1.2, 22),
+          1.1, true);
     check(random_scene("polydisperse (radii x8), periodic", Box::periodic_box(30, 30, 30), 2000,
                        {30, 30, 30}, 0.4, 8, 14),
           1.0, true);
@@ -226,6 +229,17 @@ int main(int argc, char** argv) {
     // rank has none (and all start on the last rank).
     check(random_scene("empty subdomains", cube, 600, {5, 20, 22}, 1.0, 1, 19), 1.2, true,
           Start::last_rank);
+    // No particles at all, and all on one point (no extent to split).
+    check(random_scene("no particles", Box::open(), 0, {1, 1, 1}, 1.0, 1, 23), 1.0, true);
+    {
+      Scene point = random_scene("all on one point, open", Box::open(), 5, {1, 1, 1}, 1.0, 1, 24);
+      const auto add = point.add;
+      point.add = [add](ParticleStore& s, std::size_t k) {
+        add(s, k);
+        s.set_particle(s.size() - 1, s.particle_at(s.size() - 1).moved_to({3, 3, 3}));
+      };
+      check(point, 1.0, true);
+    }
     // Ellipses in the plane of a two-dimensional box (not split along z).
     {
       const Box plane = Box::two_dimensional_box(40, 36, 0.2);

@@ -11,11 +11,12 @@
 //  2. migration: every particle is sent to the rank whose subdomain holds
 //     its centre (from any rank: the particles may start anywhere);
 //  3. ghosts: rank r receives the particles j of other subdomains whose
-//     centre lies within cutoff (R_j + R_max) of its subdomain (R: bounding
-//     radius, R_max the largest over all ranks), per particle, so that a few
-//     large particles do not thicken every layer; they are received once per
-//     rank, at their own centres (the periodic images are the local screen's
-//     minimum image);
+//     centre lies within cutoff (R_j + R_max(r)) of its subdomain (R:
+//     bounding radius, R_max(r) the largest of r's own particles), per
+//     particle and per receiving rank, so that a few large particles thicken
+//     only the layers around their own rank; each is received once per rank,
+//     at its own centre (the periodic images are the local screen's minimum
+//     image);
 //  4. each rank screens its own and ghost particles with screen_pairs, in
 //     the same box, and keeps a pair when it owns the particle of the
 //     smaller tag (the owner rule: every pair is found exactly once over all
@@ -74,6 +75,10 @@ struct DistributedReport {
 // A particle whose reach is wider than a subdomain is handled: the ranks
 // exchange ghosts with every rank within the largest reach (more than the
 // 26 nearest, then), and each particle goes only to the ranks it can reach.
+// The local screen's r12 of a pair is the single-process one to the bit; in
+// a triclinic box this holds when both screens' cell lists have at least 3
+// cells across each periodic axis (with fewer, r12 is the minimum image of a
+// sum, which may differ in its last bit).
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint64_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out);

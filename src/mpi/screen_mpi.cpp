@@ -77,7 +77,7 @@ using detail::ParticleRecord;
 // An error found by some ranks, thrown on every rank (the message of the
 // lowest of them): a rank that threw alone would leave the others waiting in
 // the next collective call.
-void throw_if_any(MPI_Comm comm, const std::string& error) {
+void throw_if_any(MPI_Comm comm, const std::string& error, const char* caller = "screen_pairs") {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   int mine = error.empty() ? INT_MAX : rank, first = INT_MAX;
@@ -88,7 +88,8 @@ void throw_if_any(MPI_Comm comm, const std::string& error) {
   MPI_Bcast(&length, 1, MPI_INT, first, comm);
   message.resize(std::size_t(length));
   MPI_Bcast(message.data(), length, MPI_CHAR, first, comm);
-  throw std::invalid_argument("screen_pairs (MPI, rank " + std::to_string(first) + "): " + message);
+  throw std::invalid_argument(std::string(caller) + " (MPI, rank " + std::to_string(first) +
+                              "): " + message);
 }
 
 // Frees the communicators and the datatype made here, however we leave.
@@ -240,6 +241,9 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     // plane of centres in open boundaries).
     if (!(grid.width[K] > 0)) dims[K] = 1;
   }
+  // (Every axis of no extent: a point, or no particles at all; the ranks
+  // along x then, all but one of them empty.)
+  if (dims[0] == 1 && dims[1] == 1 && dims[2] == 1) dims[0] = 0;
   MPI_Dims_create(size, 3, dims.data());
   Handles handles;
   const int periods[3] = {geometry.periodic[0], geometry.periodic[1], geometry.periodic[2]};
@@ -519,18 +523,20 @@ TaggedPairs gather_pairs(MPI_Comm comm, const TaggedPairs& local, int root) {
   std::string error;
   if (local.j.size() != local.i.size() ||
       (!local.mu2.empty() && local.mu2.size() != local.i.size()))
-    error = "gather_pairs: i, j and mu2 differ in length";
+    error = "i, j and mu2 differ in length";
   // mu2 from every rank when any has it (a rank with no pairs has none).
-  unsigned long long mine[2] = {local.size(), local.mu2.empty() ? 0ull : 1ull}, all[2];
-  MPI_Allreduce(mine, all, 2, MPI_UNSIGNED_LONG_LONG, MPI_MAX, comm);
+  int has_mu2 = local.mu2.empty() ? 0 : 1, any_mu2 = 0;
+  MPI_Allreduce(&has_mu2, &any_mu2, 1, MPI_INT, MPI_MAX, comm);
   unsigned long long total = 0, count = local.size();
   MPI_Allreduce(&count, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
   if (error.empty() && total > (unsigned long long)INT_MAX)
-    error = "gather_pairs: more than 2^31 - 1 pairs for one rank";
-  if (error.empty() && all[1] && local.mu2.size() != local.i.size())
-    error = "gather_pairs: some ranks have mu2 and this one has not";
-  throw_if_any(comm, error);
-  const bool with_mu2 = all[1] != 0;
+    error = "more than 2^31 - 1 pairs for one rank";
+  if (error.empty() && any_mu2 && local.mu2.size() != local.i.size())
+    error = "some ranks have mu2 and this one has not";
+  if (error.empty() && (root < 0 || root >= size))
+    error = "root " + std::to_string(root) + " is not a rank of the " + std::to_string(size);
+  throw_if_any(comm, error, "gather_pairs");
+  const bool with_mu2 = any_mu2 != 0;
   int n = int(local.size());
   std::vector<int> counts(rank == root ? std::size_t(size) : 0);
   MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, root, comm);
