@@ -64,8 +64,8 @@ struct Scene {
 enum class Start { round_robin, last_rank };
 
 // Screens the scene on all ranks and compares on rank 0.
-void check(const Scene& scene, double cutoff, bool with_mu2, Start start = Start::round_robin,
-           bool tags32 = false) {
+pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool with_mu2,
+                                        Start start = Start::round_robin, bool tags32 = false) {
   ScreenOptions options;
   options.cutoff = cutoff;
   options.with_mu2 = with_mu2;
@@ -100,7 +100,7 @@ void check(const Scene& scene, double cutoff, bool with_mu2, Start start = Start
   MPI_Reduce(&ghosts, &total_ghosts, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
   int local_ok = ok, all_ok = 0;
   MPI_Reduce(&local_ok, &all_ok, 1, MPI_INT, MPI_MIN, 0, MPI_COMM_WORLD);
-  if (rank != 0) return;
+  if (rank != 0) return report;
   ParticleStore whole;
   scene.prepare(whole);
   for (std::size_t k = 0; k < scene.size; ++k) scene.add(whole, k);
@@ -127,6 +127,7 @@ void check(const Scene& scene, double cutoff, bool with_mu2, Start start = Start
               report.dims[1], report.dims[2], expected.size(), total_ghosts,
               why.empty() ? "same" : ("DIFFERENT: " + why).c_str());
   if (!why.empty()) ++failures;
+  return report;
 }
 
 // Random spheroids (semi-axes (a, a/2, a/2) times a factor in [1, spread])
@@ -281,6 +282,37 @@ int main(int argc, char** argv) {
           s.add_axes({at, at, at}, {big, 3, 3}, {0.9, 0.1, 0.3, 0.2});
       };
       check(scene, 1.0, true);
+    }
+    // Ghost layers per size: one large particle added to a scene of small
+    // ones changes what every rank receives by at most itself, the rank that
+    // owns it included (small particles go as far as twice their own reach,
+    // the large one comes to them: src/mpi/screen_mpi.cpp).
+    {
+      const Scene small =
+          random_scene("small ones", Box::periodic_box(40, 40, 40), 3000, {40, 40, 40}, 0.6, 1, 25);
+      Scene with_large = small;
+      with_large.name = "small ones and a large one";
+      with_large.size = small.size + 1;
+      const auto add_small = small.add;
+      const std::size_t n = small.size;
+      with_large.add = [add_small, n](ParticleStore& s, std::size_t k) {
+        if (k < n)
+          add_small(s, k);
+        else
+          s.add_axes({5, 5, 5}, {7, 2, 2}, {1, 0, 0, 0});
+      };
+      const pwcontact::mpi::DistributedReport before = check(small, 1.0, false);
+      const pwcontact::mpi::DistributedReport after = check(with_large, 1.0, false);
+      int ok = after.ghosts <= before.ghosts + 1, all_ok = 0;
+      int owns_large = after.largest_radius >= 7, owners = 0;
+      MPI_Allreduce(&ok, &all_ok, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+      MPI_Allreduce(&owns_large, &owners, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+      if (rank == 0) {
+        std::printf("%-40s %d ranks: %s\n", "ghost layers per size", ranks,
+                    all_ok && owners == 1 ? "every rank receives at most the large one in addition"
+                                          : "WRONG: a rank receives more");
+        if (!all_ok || owners != 1) ++failures;
+      }
     }
     // Errors: on every rank, whatever rank found them.
     expect_error(

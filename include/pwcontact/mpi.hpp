@@ -11,16 +11,18 @@
 //  2. migration: every particle is sent to the rank whose subdomain holds
 //     its centre (from any rank: the particles may start anywhere);
 //  3. ghosts: rank r receives the particles j of other subdomains whose
-//     centre lies within cutoff (R_j + R_max(r)) of its subdomain (R:
-//     bounding radius, R_max(r) the largest of r's own particles), per
-//     particle and per receiving rank, so that a few large particles thicken
-//     only the layers around their own rank; each is received once per rank,
-//     at its own centre (the periodic images are the local screen's minimum
-//     image);
+//     centre lies within cutoff (R_j + min(R_j, R_max(r))) of its subdomain
+//     (R: bounding radius, R_max(r) the largest of r's own particles), per
+//     particle and per receiving rank: a small particle goes only as far as
+//     twice its reach, whatever the large particles near it (they come to
+//     it), so that a few large particles do not thicken every layer; each is
+//     received once per rank, at its own centre (the periodic images are the
+//     local screen's minimum image);
 //  4. each rank screens its own and ghost particles with screen_pairs, in
-//     the same box, and keeps a pair when it owns the particle of the
-//     smaller tag (the owner rule: every pair is found exactly once over all
-//     ranks, see screen_mpi.cpp).
+//     the same box, and keeps a pair when it owns the pair's keeper: the
+//     particle of the smaller bounding radius, of the smaller tag when the
+//     radii are equal (the owner rule: every pair is found exactly once over
+//     all ranks, see screen_mpi.cpp).
 // The pairs and their mu^2 are those screen_pairs gives for the whole scene
 // on one process with the particles indexed by tag, to the bit (the same
 // radii, r12 and solve for every pair).
@@ -58,6 +60,7 @@ struct DistributedReport {
   std::size_t owned = 0;                  // particles in this rank's subdomain after migration
   std::size_t sent_away = 0;              // particles migrated from this rank
   std::size_t ghosts = 0;                 // particles received from other subdomains
+  double largest_radius = -1;             // of the particles owned (-1: none)
   std::size_t neighbours = 0;             // ranks this one exchanges ghosts with
   std::size_t ghost_bytes_sent = 0, migration_bytes_sent = 0;
   ScreenReport screen;  // of the local screen (own and ghost particles)

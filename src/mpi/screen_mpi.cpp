@@ -1,20 +1,28 @@
 // screen_pairs over MPI ranks (see pwcontact/mpi.hpp): decomposition,
 // migration, ghosts, the local screen and the owner rule.
 //
-// The owner rule. A rank keeps a pair (a, b), tag_a < tag_b, found by its
-// local screen when it owns a (a is in its subdomain, not a ghost). Ownership
-// is unique, so no pair is kept twice; and the owner of a always finds the
-// pair: mu < cutoff implies that the bounding spheres scaled by the cutoff
-// meet, |r12| < cutoff (R_a + R_b) <= cutoff (R_b + R_max); a lies in the
-// owner's subdomain, so b's centre lies within that distance of the
-// subdomain in every cell-space coordinate (BoxGeometry: two centres a
-// distance d apart differ by at most d in each, periodic images included),
-// which is the test by which b is sent to the owner as a ghost. The owner
-// screens a and b in the same box as the whole scene, with the same centres,
-// forms and radii: the same minimum image r12 (the difference of the same
-// wrapped positions, plus the one lattice vector that brings the pair
-// within its reach), the same prefilters and the same solve, hence the same
-// mu^2.
+// The owner rule. Of a pair (a, b) found by a rank's local screen, the
+// keeper is the particle of the smaller bounding radius, of the smaller tag
+// when the radii are equal (the radii travel with the particles: every rank
+// compares the same numbers); the rank keeps the pair when it owns the keeper
+// (its centre is in the rank's subdomain: it is not a ghost there).
+// Ownership is unique, so no pair is kept twice; and the owner of the keeper
+// a always finds the pair: mu < cutoff implies that the bounding spheres
+// scaled by the cutoff meet, |r12| < cutoff (R_a + R_b), and R_a <= R_b and
+// R_a <= R_max(owner) (the largest radius the owner holds) give
+// |r12| < cutoff (R_b + min(R_b, R_max(owner))); a lies in the owner's
+// subdomain, so b's centre lies within that distance of the subdomain in
+// every cell-space coordinate (BoxGeometry: two centres a distance d apart
+// differ by at most d in each, periodic images included), which is the test
+// by which b is sent to the owner as a ghost. So a small particle goes only
+// as far as twice its own reach, whatever the large particles near it (they
+// come to it instead: HOOMD-blue's issue #756 is the lesson of one global
+// ghost width), and a rank of small particles receives a large one without
+// the many small ones around it. The owner screens a and b in the same box
+// as the whole scene, with the same centres, forms and radii: the same
+// minimum image r12 (the difference of the same wrapped positions, plus the
+// one lattice vector that brings the pair within its reach), the same
+// prefilters and the same solve, hence the same mu^2.
 #include <omp.h>
 
 #include <algorithm>
@@ -305,7 +313,7 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   report.seconds_migration = migrated - start;
 
   // 2. Ghosts, in unit coordinates along each axis: particle j goes to the
-  // ranks whose subdomain lies within cutoff (R_j + R_max) of its centre
+  // ranks r whose subdomain lies within cutoff (R_j + min(R_j, R_max(r))) of its centre
   // (cell-space distance / width), plus a slack for the rounding of the
   // coordinates (as the cell lists' coarse test).
   std::array<double, 3> low_high = {0, 0, 0};
@@ -374,13 +382,13 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
                                  neighbours.data(), MPI_UNWEIGHTED, MPI_INFO_NULL, 0,
                                  &handles.graph);
   // Each neighbour's largest bounding radius (-1 without particles): j goes
-  // to rank r only when within cutoff (R_j + R_max(r)) of r's subdomain
-  // (enough for the owner rule: the owner of a has R_a <= R_max(owner)),
-  // so that the few large particles of one rank thicken only the layers
-  // that rank receives, and a rank with no particles receives none.
+  // to rank r only when within cutoff (R_j + min(R_j, R_max(r))) of r's
+  // subdomain (the owner rule above), and a rank with no particles receives
+  // none.
   double own_largest = owned_count ? 0 : -1;
   for (std::size_t p = 0; p < owned_count; ++p)
     own_largest = std::max(own_largest, owned[p * ParticleRecord::doubles + 10]);
+  report.largest_radius = own_largest;
   std::vector<double> largest_of(neighbours.size(), -1);
   MPI_Neighbor_allgather(&own_largest, 1, MPI_DOUBLE, largest_of.data(), 1, MPI_DOUBLE,
                          handles.graph);
@@ -398,7 +406,7 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
       const double* record = owned.data() + p * ParticleRecord::doubles;
       const double x[3] = {record[1], record[2], record[3]};
       const std::array<double, 3> t = grid.unit(x);
-      const double reach = options.cutoff * (record[10] + largest_neighbour);
+      const double reach = options.cutoff * (record[10] + std::min(record[10], largest_neighbour));
       for (int k = 0; k < 3; ++k) {
         const auto K = std::size_t(k);
         slabs[k].clear();
@@ -420,7 +428,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
             const auto n = std::size_t(std::lower_bound(neighbours.begin(), neighbours.end(), r) -
                                        neighbours.begin());
             if (largest_of[n] < 0) continue;
-            const double reach_n = options.cutoff * (record[10] + largest_of[n]);
+            const double reach_n =
+                options.cutoff * (record[10] + std::min(record[10], largest_of[n]));
             if (da <= unit_reach(0, reach_n) && db <= unit_reach(1, reach_n) &&
                 dc <= unit_reach(2, reach_n))
               to.push_back(int(n));
@@ -492,10 +501,12 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   }
   throw_if_any(cart, error);
   for (std::size_t k = 0; k < pairs.size(); ++k) {
-    const Entry& a = entries[pairs.i[k]];
-    if (!a.own) continue;
+    const Entry& a = entries[pairs.i[k]];  // (the smaller tag)
+    const Entry& b = entries[pairs.j[k]];
+    const bool keeper_own = b.record[10] < a.record[10] ? b.own : a.own;
+    if (!keeper_own) continue;
     out.i.push_back(a.tag);
-    out.j.push_back(entries[pairs.j[k]].tag);
+    out.j.push_back(b.tag);
     if (options.with_mu2) out.mu2.push_back(pairs.mu2[k]);
   }
   report.seconds_screen = MPI_Wtime() - exchanged;
