@@ -7,6 +7,7 @@
 // when any scene differs.
 #include <mpi.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -61,7 +62,24 @@ struct Scene {
   std::function<void(ParticleStore&)> prepare = [](ParticleStore&) {};  // types, before any add
 };
 
-enum class Start { round_robin, last_rank };
+// Where the particles start: round robin, all on the last rank, or each on
+// the rank next to its owner (+1 slab along every axis: as after a move) in
+// a periodic orthorhombic box whose particles lie in [0, L) and whose grid
+// of ranks is next_dims (row-major ranks, as MPI_Cart_create numbers them
+// without reordering).
+enum class Start { round_robin, last_rank, next_to_owner };
+std::array<int, 3> next_dims = {1, 1, 1};
+std::array<double, 3> next_lengths = {1, 1, 1};
+
+int next_to_owner(const ParticleStore& one) {
+  int c[3];
+  for (int k = 0; k < 3; ++k) {
+    const int d = next_dims[std::size_t(k)];
+    const int slab = std::min(d - 1, int(one.centre(k)[0] / next_lengths[std::size_t(k)] * d));
+    c[k] = (slab + 1) % d;
+  }
+  return (c[0] * next_dims[1] + c[1]) * next_dims[2] + c[2];
+}
 
 // Screens the scene on all ranks and compares on rank 0.
 pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool with_mu2,
@@ -75,7 +93,13 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
   std::vector<std::uint64_t> tags;
   std::vector<std::uint32_t> tags_32;
   for (std::size_t k = 0; k < scene.size; ++k) {
-    const int at = start == Start::round_robin ? int(k % std::size_t(ranks)) : ranks - 1;
+    int at = start == Start::round_robin ? int(k % std::size_t(ranks)) : ranks - 1;
+    if (start == Start::next_to_owner) {
+      ParticleStore one;
+      scene.prepare(one);
+      scene.add(one, k);
+      at = next_to_owner(one);
+    }
     if (at != rank) continue;
     scene.add(mine, k);
     tags.push_back(k);
@@ -122,9 +146,12 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
       why = "pair " + std::to_string(k) + ": mu2 " + std::to_string(all.mu2[k]) + " vs " +
             std::to_string(expected.mu2[k]);
   }
-  std::printf("%-40s cutoff %.2f%s %d ranks (%d x %d x %d): %zu pairs, %llu ghosts: %s\n",
+  if (start == Start::next_to_owner && !report.migration_by_neighbours)
+    why = "migrated by MPI_Alltoallv, though every particle went to a neighbour";
+  std::printf("%-40s cutoff %.2f%s %d ranks (%d x %d x %d): %zu pairs, %llu ghosts%s: %s\n",
               scene.name.c_str(), cutoff, with_mu2 ? " mu2" : "", ranks, report.dims[0],
               report.dims[1], report.dims[2], expected.size(), total_ghosts,
+              report.migration_by_neighbours ? "" : " (migrated by alltoallv)",
               why.empty() ? "same" : ("DIFFERENT: " + why).c_str());
   if (!why.empty()) ++failures;
   return report;
@@ -205,7 +232,12 @@ int main(int argc, char** argv) {
     const Box cube = Box::periodic_box(24, 20, 22);
     const Scene periodic =
         random_scene("periodic orthorhombic", cube, 3000, {24, 20, 22}, 1.0, 1, 11);
-    check(periodic, 1.0, false);
+    next_dims = check(periodic, 1.0, false).dims;
+    next_lengths = {24, 20, 22};
+    MPI_Bcast(next_dims.data(), 3, MPI_INT, 0, MPI_COMM_WORLD);
+    Scene moved = periodic;
+    moved.name = "periodic, each next to its owner";
+    check(moved, 1.0, true, Start::next_to_owner);
     check(periodic, 1.3, true, Start::last_rank, true);
     check(random_scene("open", Box::open(), 3000, {26, 22, 24}, 1.0, 1, 12), 1.2, true);
     const Box tilted = Box::triclinic(24, 22, 20, 0.3, -0.2, 0.25);

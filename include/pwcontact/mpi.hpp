@@ -9,7 +9,8 @@
 //     periodic axes, and over the extent of the centres (MPI_Allreduce) along
 //     its open axes (a two-dimensional box is not split along z);
 //  2. migration: every particle is sent to the rank whose subdomain holds
-//     its centre (from any rank: the particles may start anywhere);
+//     its centre (from any rank: the particles may start anywhere; over the
+//     neighbours alone when every particle moved at most to a neighbour);
 //  3. ghosts: rank r receives the particles j of other subdomains whose
 //     centre lies within cutoff (R_j + min(R_j, R_max(r))) of its subdomain
 //     (R: bounding radius, R_max(r) the largest of r's own particles), per
@@ -59,6 +60,8 @@ struct DistributedReport {
   std::size_t given = 0;                  // particles passed in on this rank
   std::size_t owned = 0;                  // particles in this rank's subdomain after migration
   std::size_t sent_away = 0;              // particles migrated from this rank
+  bool migration_by_neighbours = false;   // every rank's migrants went to its neighbours:
+                                          // migrated over the graph, not by MPI_Alltoallv
   std::size_t ghosts = 0;                 // particles received from other subdomains
   double largest_radius = -1;             // of the particles owned (-1: none)
   std::size_t neighbours = 0;             // ranks this one exchanges ghosts with

@@ -270,52 +270,10 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     return r;
   };
 
-  // 1. Migration: each particle to the rank of its slabs, from any rank to
-  // any rank (MPI_Alltoallv: counts for every rank, O(P) per rank; the
-  // particles may start anywhere, e.g. read by one rank).
-  std::vector<double> owned;  // records
-  {
-    Outbox outbox;
-    outbox.by_destination.resize(std::size_t(size));
-    double record[ParticleRecord::doubles];
-    for (std::size_t k = 0; k < particles.size(); ++k) {
-      const double x[3] = {particles.centre(0)[k], particles.centre(1)[k], particles.centre(2)[k]};
-      const std::array<double, 3> t = grid.unit(x);
-      const int to = rank_at({grid.slab(0, t[0]), grid.slab(1, t[1]), grid.slab(2, t[2])});
-      ParticleRecord::write(particles, k, std::uint64_t(tags[k]), record);
-      std::vector<double>& box_of = to == rank ? owned : outbox.by_destination[std::size_t(to)];
-      box_of.insert(box_of.end(), record, record + ParticleRecord::doubles);
-      if (to != rank) ++report.sent_away;
-    }
-    outbox.by_destination[std::size_t(rank)].clear();
-    std::vector<double> send;
-    std::vector<int> send_counts, send_displs;
-    try {
-      outbox.pack(send, send_counts, send_displs);
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    throw_if_any(cart, error);
-    std::vector<int> receive_counts(std::size_t(size), 0);
-    MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, cart);
-    std::size_t received = 0;
-    const std::vector<int> receive_displs = displacements(receive_counts, received);
-    const std::size_t kept = owned.size();
-    owned.resize(kept + received * ParticleRecord::doubles);
-    MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
-                  owned.data() + kept, receive_counts.data(), receive_displs.data(), handles.record,
-                  cart);
-    report.migration_bytes_sent = send.size() * sizeof(double);
-  }
-  const std::size_t owned_count = owned.size() / ParticleRecord::doubles;
-  report.owned = owned_count;
-  const double migrated = MPI_Wtime();
-  report.seconds_migration = migrated - start;
-
-  // 2. Ghosts, in unit coordinates along each axis: particle j goes to the
-  // ranks r whose subdomain lies within cutoff (R_j + min(R_j, R_max(r))) of its centre
-  // (cell-space distance / width), plus a slack for the rounding of the
-  // coordinates (as the cell lists' coarse test).
+  // The ghost test, in unit coordinates along each axis: particle j goes to
+  // the ranks r whose subdomain lies within cutoff (R_j + min(R_j,
+  // R_max(r))) of its centre (cell-space distance / width), plus a slack for
+  // the rounding of the coordinates (as the cell lists' coarse test).
   std::array<double, 3> low_high = {0, 0, 0};
   for (int k = 0; k < 3; ++k)
     low_high[std::size_t(k)] =
@@ -381,6 +339,79 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   MPI_Dist_graph_create_adjacent(cart, degree, neighbours.data(), MPI_UNWEIGHTED, degree,
                                  neighbours.data(), MPI_UNWEIGHTED, MPI_INFO_NULL, 0,
                                  &handles.graph);
+
+  // 1. Migration: each particle to the rank whose subdomain holds its
+  // centre. When every particle of every rank stays or goes to a neighbour
+  // (as after a move), over the graph (MPI_Neighbor_alltoallv: a rank's cost
+  // that of its neighbours); otherwise from any rank to any rank
+  // (MPI_Alltoallv: counts for every rank, O(P) per rank), so that the
+  // particles may start anywhere (read by one rank, round robin).
+  std::vector<double> owned;  // records
+  {
+    std::vector<int> destination(particles.size());
+    int far = 0;
+    for (std::size_t k = 0; k < particles.size(); ++k) {
+      const double x[3] = {particles.centre(0)[k], particles.centre(1)[k], particles.centre(2)[k]};
+      const std::array<double, 3> t = grid.unit(x);
+      const int to = rank_at({grid.slab(0, t[0]), grid.slab(1, t[1]), grid.slab(2, t[2])});
+      destination[k] = to;
+      if (to != rank && !std::binary_search(neighbours.begin(), neighbours.end(), to)) far = 1;
+    }
+    int any_far = 0;
+    MPI_Allreduce(&far, &any_far, 1, MPI_INT, MPI_MAX, cart);
+    report.migration_by_neighbours = any_far == 0;
+    Outbox outbox;
+    outbox.by_destination.resize(any_far ? std::size_t(size) : neighbours.size());
+    double record[ParticleRecord::doubles];
+    for (std::size_t k = 0; k < particles.size(); ++k) {
+      const int to = destination[k];
+      ParticleRecord::write(particles, k, std::uint64_t(tags[k]), record);
+      if (to == rank) {
+        owned.insert(owned.end(), record, record + ParticleRecord::doubles);
+        continue;
+      }
+      const std::size_t at =
+          any_far ? std::size_t(to)
+                  : std::size_t(std::lower_bound(neighbours.begin(), neighbours.end(), to) -
+                                neighbours.begin());
+      outbox.by_destination[at].insert(outbox.by_destination[at].end(), record,
+                                       record + ParticleRecord::doubles);
+      ++report.sent_away;
+    }
+    std::vector<double> send;
+    std::vector<int> send_counts, send_displs;
+    try {
+      outbox.pack(send, send_counts, send_displs);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    throw_if_any(cart, error);
+    std::vector<int> receive_counts(outbox.by_destination.size(), 0);
+    if (any_far)
+      MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, cart);
+    else
+      MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT,
+                            handles.graph);
+    std::size_t received = 0;
+    const std::vector<int> receive_displs = displacements(receive_counts, received);
+    const std::size_t kept = owned.size();
+    owned.resize(kept + received * ParticleRecord::doubles);
+    if (any_far)
+      MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
+                    owned.data() + kept, receive_counts.data(), receive_displs.data(),
+                    handles.record, cart);
+    else
+      MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
+                             owned.data() + kept, receive_counts.data(), receive_displs.data(),
+                             handles.record, handles.graph);
+    report.migration_bytes_sent = send.size() * sizeof(double);
+  }
+  const std::size_t owned_count = owned.size() / ParticleRecord::doubles;
+  report.owned = owned_count;
+  const double migrated = MPI_Wtime();
+  report.seconds_migration = migrated - start;
+
+  // 2. Ghosts.
   // Each neighbour's largest bounding radius (-1 without particles): j goes
   // to rank r only when within cutoff (R_j + min(R_j, R_max(r))) of r's
   // subdomain (the owner rule above), and a rank with no particles receives
