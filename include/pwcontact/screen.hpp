@@ -28,6 +28,12 @@
 
 namespace pwcontact {
 
+namespace detail {
+// Rebuilds a particle from the numbers a store holds (src/mpi: particles
+// sent between ranks keep their radii to the bit). Not part of the API.
+struct ParticleRecord;
+}  // namespace detail
+
 // Open boundaries, or a periodic box in the convention of HOOMD-blue, GSD
 // and freud: edge lengths Lx, Ly, Lz and unitless tilt factors xy, xz, yz,
 // whose lattice vectors are the columns of the box matrix
@@ -136,6 +142,7 @@ class ParticleStore {
 
    private:
     friend class ParticleStore;
+    friend struct detail::ParticleRecord;
     Particle() = default;
     std::array<double, 3> centre_{};
     std::array<double, 6> q_{};

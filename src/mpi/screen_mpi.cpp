@@ -1,0 +1,618 @@
+// screen_pairs over MPI ranks (see pwcontact/mpi.hpp): decomposition,
+// migration, ghosts, the local screen and the owner rule.
+//
+// The owner rule. Of a pair (a, b) found by a rank's local screen, the
+// keeper is the particle of the smaller bounding radius, of the smaller tag
+// when the radii are equal (the radii travel with the particles: every rank
+// compares the same numbers); the rank keeps the pair when it owns the keeper
+// (its centre is in the rank's subdomain: it is not a ghost there).
+// Ownership is unique, so no pair is kept twice; and the owner of the keeper
+// a always finds the pair: mu < cutoff implies that the bounding spheres
+// scaled by the cutoff meet, |r12| < cutoff (R_a + R_b), and R_a <= R_b and
+// R_a <= R_max(owner) (the largest radius the owner holds) give
+// |r12| < cutoff (R_b + min(R_b, R_max(owner))); a lies in the owner's
+// subdomain, so b's centre lies within that distance of the subdomain in
+// every cell-space coordinate (BoxGeometry: two centres a distance d apart
+// differ by at most d in each, periodic images included), which is the test
+// by which b is sent to the owner as a ghost. So a small particle goes only
+// as far as twice its own reach, whatever the large particles near it (they
+// come to it instead: HOOMD-blue's issue #756 is the lesson of one global
+// ghost width), and a rank of small particles receives a large one without
+// the many small ones around it. The owner screens a and b in the same box
+// as the whole scene, with the same centres, forms and radii: the same
+// minimum image r12 (the difference of the same wrapped positions, plus the
+// one lattice vector that brings the pair within its reach), the same
+// prefilters and the same solve, hence the same mu^2.
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "pwcontact/mpi.hpp"
+#include "screen/cell_lists.hpp"
+
+namespace pwcontact::detail {
+
+// A particle on the wire: its tag's bits, centre, form and radii, as 13
+// doubles (MPI sees only doubles; the tag's bits pass unchanged between
+// ranks of one kind of machine).
+struct ParticleRecord {
+  static constexpr int doubles = 13;
+
+  static void write(const ParticleStore& store, std::size_t k, std::uint64_t tag, double* out) {
+    std::memcpy(&out[0], &tag, sizeof tag);
+    for (int a = 0; a < 3; ++a) out[1 + a] = store.centre(a)[k];
+    for (int a = 0; a < 6; ++a) out[4 + a] = store.q(a)[k];
+    out[10] = store.bounding_radius()[k];
+    out[11] = store.inscribed_radius()[k];
+    out[12] = store.sphere_radius()[k];
+  }
+  static std::uint64_t tag(const double* in) {
+    std::uint64_t t;
+    std::memcpy(&t, &in[0], sizeof t);
+    return t;
+  }
+  // The particle with the radii it was sent with (not recomputed: a particle
+  // made by add_axes has radii from its semi-axes, which the eigenvalues of
+  // its Q would not give to the bit). Untyped: types only guide the search.
+  static ParticleStore::Particle read(const double* in) {
+    ParticleStore::Particle p;
+    for (int a = 0; a < 3; ++a) p.centre_[std::size_t(a)] = in[1 + a];
+    for (int a = 0; a < 6; ++a) p.q_[std::size_t(a)] = in[4 + a];
+    p.bounding_ = in[10];
+    p.inscribed_ = in[11];
+    p.sphere_ = in[12];
+    p.type_ = ParticleStore::untyped;
+    return p;
+  }
+};
+
+}  // namespace pwcontact::detail
+
+namespace pwcontact::mpi {
+namespace {
+
+using detail::ParticleRecord;
+
+// An error found by some ranks, thrown on every rank (the message of the
+// lowest of them): a rank that threw alone would leave the others waiting in
+// the next collective call.
+void throw_if_any(MPI_Comm comm, const std::string& error, const char* caller = "screen_pairs") {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  int mine = error.empty() ? INT_MAX : rank, first = INT_MAX;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, comm);
+  if (first == INT_MAX) return;
+  std::string message = error;
+  int length = int(message.size());
+  MPI_Bcast(&length, 1, MPI_INT, first, comm);
+  message.resize(std::size_t(length));
+  MPI_Bcast(message.data(), length, MPI_CHAR, first, comm);
+  throw std::invalid_argument(std::string(caller) + " (MPI, rank " + std::to_string(first) +
+                              "): " + message);
+}
+
+// Frees the communicators and the datatype made here, however we leave.
+struct Handles {
+  MPI_Comm cart = MPI_COMM_NULL, graph = MPI_COMM_NULL;
+  MPI_Datatype record = MPI_DATATYPE_NULL;
+  ~Handles() {
+    if (graph != MPI_COMM_NULL) MPI_Comm_free(&graph);
+    if (cart != MPI_COMM_NULL) MPI_Comm_free(&cart);
+    if (record != MPI_DATATYPE_NULL) MPI_Type_free(&record);
+  }
+};
+
+// The Cartesian grid of ranks over the box: along each axis, a particle's
+// unit coordinate t in [0, 1] (periodic: its fractional coordinate s - floor
+// s; open: (x - low) / (high - low) over the centres of every rank) falls in
+// slab floor(t dims).
+struct Decomposition {
+  screen::BoxGeometry geometry;
+  std::array<int, 3> dims = {1, 1, 1}, coords = {0, 0, 0};
+  std::array<double, 3> low = {0, 0, 0}, extent = {0, 0, 0};  // open axes
+  std::array<double, 3> width = {0, 0, 0};                    // cell-space width along each axis
+
+  std::array<double, 3> unit(const double x[3]) const {
+    std::array<double, 3> t{};
+    double s[3] = {0, 0, 0};
+    geometry.fractional(x, s);
+    for (int k = 0; k < 3; ++k)
+      if (geometry.periodic[k])
+        t[std::size_t(k)] = screen::BoxGeometry::fraction_of(s[k]);
+      else if (extent[std::size_t(k)] > 0)
+        t[std::size_t(k)] =
+            std::clamp((x[k] - low[std::size_t(k)]) / extent[std::size_t(k)], 0.0, 1.0);
+    return t;
+  }
+  int slab(int k, double t) const {
+    const int d = dims[std::size_t(k)];
+    const double c = t * d;
+    return c >= double(d - 1) ? d - 1 : (c > 0 ? int(c) : 0);
+  }
+};
+
+// Records (ParticleRecord::doubles each) by destination, packed for a
+// v-collective: counts and displacements in records.
+struct Outbox {
+  std::vector<std::vector<double>> by_destination;
+  void pack(std::vector<double>& data, std::vector<int>& counts, std::vector<int>& displs) const {
+    counts.assign(by_destination.size(), 0);
+    displs.assign(by_destination.size(), 0);
+    std::size_t total = 0;
+    for (std::size_t d = 0; d < by_destination.size(); ++d) {
+      const std::size_t n = by_destination[d].size() / ParticleRecord::doubles;
+      if (n > std::size_t(INT_MAX) || total > std::size_t(INT_MAX))
+        throw std::invalid_argument("more than 2^31 particles sent from one rank at once");
+      counts[d] = int(n);
+      displs[d] = int(total);
+      total += n;
+    }
+    if (total > std::size_t(INT_MAX))
+      throw std::invalid_argument("more than 2^31 particles sent from one rank at once");
+    data.clear();
+    data.reserve(total * ParticleRecord::doubles);
+    for (const auto& v : by_destination) data.insert(data.end(), v.begin(), v.end());
+  }
+};
+
+std::vector<int> displacements(const std::vector<int>& counts, std::size_t& total) {
+  std::vector<int> displs(counts.size(), 0);
+  total = 0;
+  for (std::size_t d = 0; d < counts.size(); ++d) {
+    displs[d] = int(total);
+    total += std::size_t(counts[d]);
+  }
+  return displs;
+}
+
+template <class Tag>
+DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particles,
+                                     const std::vector<Tag>& tags, const Box& box,
+                                     const ScreenOptions& options, TaggedPairs& out) {
+  out = {};
+  DistributedReport report;
+  report.given = particles.size();
+  int size = 1, rank = 0;
+  MPI_Comm_size(comm, &size);
+  MPI_Comm_rank(comm, &rank);
+
+  // The input, checked on every rank before anything moves.
+  std::string error;
+  if (tags.size() != particles.size())
+    error = std::to_string(tags.size()) + " tags for " + std::to_string(particles.size()) +
+            " particles";
+  else if (!(options.cutoff > 0) || !std::isfinite(options.cutoff) ||
+           !std::isfinite(options.cutoff * options.cutoff) ||
+           !(options.cutoff * options.cutoff >= std::numeric_limits<double>::min()))
+    error = "the cutoff must be positive and finite (and its square a normal number)";
+  else if (options.threads < 0)
+    error = "threads must be >= 0 (0 = all)";
+  throw_if_any(comm, error);
+
+  const double start = MPI_Wtime();
+  Decomposition grid;
+  grid.geometry = screen::BoxGeometry(box);
+  const screen::BoxGeometry& geometry = grid.geometry;
+  // The largest bounding radius, the extent of the centres along the open
+  // axes and the largest centre coordinate (for the slack), over all ranks.
+  double local_max[8] = {0,
+                         -std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(),
+                         0};
+  for (std::size_t k = 0; k < particles.size(); ++k) {
+    local_max[0] = std::max(local_max[0], particles.bounding_radius()[k]);
+    for (int a = 0; a < 3; ++a) {
+      const double x = particles.centre(a)[k];
+      local_max[1 + a] = std::max(local_max[1 + a], x);
+      local_max[4 + a] = std::max(local_max[4 + a], -x);  // -low
+      local_max[7] = std::max(local_max[7], std::abs(x));
+    }
+  }
+  double global_max[8];
+  MPI_Allreduce(local_max, global_max, 8, MPI_DOUBLE, MPI_MAX, comm);
+  const double largest_radius = global_max[0];
+  const double largest_reach = options.cutoff * 2 * largest_radius;
+  if (box.periodic) {
+    const std::array<double, 3> widths = box.perpendicular_widths();
+    for (int k = 0; k < 3; ++k)
+      if (box.periodic_along(k) && !(2 * largest_reach <= widths[std::size_t(k)]))
+        throw std::invalid_argument(
+            "screen_pairs (MPI): the periodic box is too small for the cutoff: its width " +
+            std::to_string(widths[std::size_t(k)]) + " across axis " + std::to_string(k) +
+            " is less than twice the largest reach cutoff * 2 R_max = " +
+            std::to_string(largest_reach) + " (the minimum image convention would miss pairs)");
+  }
+  std::array<int, 3> dims = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    const auto K = std::size_t(k);
+    if (geometry.periodic[k]) {
+      grid.width[K] = geometry.width[K];
+    } else if (global_max[1 + k] >= -global_max[4 + k]) {
+      grid.low[K] = -global_max[4 + k];
+      grid.extent[K] = global_max[1 + k] - grid.low[K];
+      grid.width[K] = grid.extent[K];
+    }
+    // No split along an axis of no extent (the z of a two-dimensional box, a
+    // plane of centres in open boundaries).
+    if (!(grid.width[K] > 0)) dims[K] = 1;
+  }
+  // (Every axis of no extent: a point, or no particles at all; the ranks
+  // along x then, all but one of them empty.)
+  if (dims[0] == 1 && dims[1] == 1 && dims[2] == 1) dims[0] = 0;
+  MPI_Dims_create(size, 3, dims.data());
+  Handles handles;
+  const int periods[3] = {geometry.periodic[0], geometry.periodic[1], geometry.periodic[2]};
+  MPI_Cart_create(comm, 3, dims.data(), periods, 0, &handles.cart);
+  MPI_Comm cart = handles.cart;
+  MPI_Comm_rank(cart, &rank);
+  MPI_Cart_coords(cart, rank, 3, grid.coords.data());
+  grid.dims = dims;
+  report.dims = dims;
+  report.coords = grid.coords;
+  MPI_Type_contiguous(ParticleRecord::doubles, MPI_DOUBLE, &handles.record);
+  MPI_Type_commit(&handles.record);
+  auto rank_at = [&](const std::array<int, 3>& c) {
+    int r = 0;
+    MPI_Cart_rank(cart, c.data(), &r);
+    return r;
+  };
+
+  // The ghost test, in unit coordinates along each axis: particle j goes to
+  // the ranks r whose subdomain lies within cutoff (R_j + min(R_j,
+  // R_max(r))) of its centre (cell-space distance / width), plus a slack for
+  // the rounding of the coordinates (as the cell lists' coarse test).
+  std::array<double, 3> low_high = {0, 0, 0};
+  for (int k = 0; k < 3; ++k)
+    low_high[std::size_t(k)] =
+        std::max(std::abs(grid.low[std::size_t(k)]),
+                 std::abs(grid.low[std::size_t(k)] + grid.extent[std::size_t(k)]));
+  const double slack =
+      screen::coarse_slack(geometry, std::max(largest_reach, global_max[7]), low_high, low_high);
+  auto unit_reach = [&](int k, double reach) {
+    const double w = grid.width[std::size_t(k)];
+    return w > 0 ? (reach + slack) / w + 8 * std::numeric_limits<double>::epsilon()
+                 : std::numeric_limits<double>::infinity();
+  };
+  // The neighbourhood: every rank within the largest reach along each axis
+  // (slabs -m .. m; m = 1 unless a particle reaches across more than a
+  // slab), each once and not this rank (a particle of this rank is paired
+  // with its own images by the local screen's minimum image). One or two
+  // ranks along a periodic axis make the same rank a neighbour on both sides:
+  // it is listed once, and receives each particle once.
+  //
+  // The exchange is MPI_Neighbor_alltoallv over a distributed graph of these
+  // ranks (26 at most when the reach is within a subdomain): each rank's
+  // cost is that of its neighbours and its ghosts, whatever the number of
+  // ranks; MPI_Alltoallv with zero counts would cost O(P) per rank in counts
+  // alone, O(P^2) over the machine.
+  std::array<int, 3> reach_slabs = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    const auto K = std::size_t(k);
+    const double m = std::floor(unit_reach(k, largest_reach) * dims[K]) + 1;
+    const int cap = geometry.periodic[k] ? dims[K] : dims[K] - 1;
+    reach_slabs[K] = dims[K] == 1 ? 0 : (m >= double(cap) ? cap : int(m));
+  }
+  const std::array<int, 3> span = {2 * reach_slabs[0] + 1, 2 * reach_slabs[1] + 1,
+                                   2 * reach_slabs[2] + 1};
+  // The rank at each offset (-1: outside open boundaries), and the sorted
+  // neighbour ranks.
+  std::vector<int> rank_of_offset(std::size_t(span[0] * span[1] * span[2]), -1);
+  std::vector<int> neighbours;
+  for (int a = 0; a < span[0]; ++a)
+    for (int b = 0; b < span[1]; ++b)
+      for (int c = 0; c < span[2]; ++c) {
+        const int offset[3] = {a - reach_slabs[0], b - reach_slabs[1], c - reach_slabs[2]};
+        std::array<int, 3> at{};
+        bool inside = true;
+        for (int k = 0; k < 3; ++k) {
+          const auto K = std::size_t(k);
+          int v = grid.coords[K] + offset[k];
+          if (geometry.periodic[k])
+            v = ((v % dims[K]) + dims[K]) % dims[K];
+          else if (v < 0 || v >= dims[K])
+            inside = false;
+          at[K] = v;
+        }
+        if (!inside) continue;
+        const int r = rank_at(at);
+        rank_of_offset[std::size_t((a * span[1] + b) * span[2] + c)] = r;
+        if (r != rank) neighbours.push_back(r);
+      }
+  std::sort(neighbours.begin(), neighbours.end());
+  neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+  report.neighbours = neighbours.size();
+  // (The neighbourhood is symmetric: every rank takes the same offsets.)
+  const int degree = int(neighbours.size());
+  MPI_Dist_graph_create_adjacent(cart, degree, neighbours.data(), MPI_UNWEIGHTED, degree,
+                                 neighbours.data(), MPI_UNWEIGHTED, MPI_INFO_NULL, 0,
+                                 &handles.graph);
+
+  // 1. Migration: each particle to the rank whose subdomain holds its
+  // centre. When every particle of every rank stays or goes to a neighbour
+  // (as after a move), over the graph (MPI_Neighbor_alltoallv: a rank's cost
+  // that of its neighbours); otherwise from any rank to any rank
+  // (MPI_Alltoallv: counts for every rank, O(P) per rank), so that the
+  // particles may start anywhere (read by one rank, round robin).
+  std::vector<double> owned;  // records
+  {
+    std::vector<int> destination(particles.size());
+    int far = 0;
+    for (std::size_t k = 0; k < particles.size(); ++k) {
+      const double x[3] = {particles.centre(0)[k], particles.centre(1)[k], particles.centre(2)[k]};
+      const std::array<double, 3> t = grid.unit(x);
+      const int to = rank_at({grid.slab(0, t[0]), grid.slab(1, t[1]), grid.slab(2, t[2])});
+      destination[k] = to;
+      if (to != rank && !std::binary_search(neighbours.begin(), neighbours.end(), to)) far = 1;
+    }
+    int any_far = 0;
+    MPI_Allreduce(&far, &any_far, 1, MPI_INT, MPI_MAX, cart);
+    report.migration_by_neighbours = any_far == 0;
+    Outbox outbox;
+    outbox.by_destination.resize(any_far ? std::size_t(size) : neighbours.size());
+    double record[ParticleRecord::doubles];
+    for (std::size_t k = 0; k < particles.size(); ++k) {
+      const int to = destination[k];
+      ParticleRecord::write(particles, k, std::uint64_t(tags[k]), record);
+      if (to == rank) {
+        owned.insert(owned.end(), record, record + ParticleRecord::doubles);
+        continue;
+      }
+      const std::size_t at =
+          any_far ? std::size_t(to)
+                  : std::size_t(std::lower_bound(neighbours.begin(), neighbours.end(), to) -
+                                neighbours.begin());
+      outbox.by_destination[at].insert(outbox.by_destination[at].end(), record,
+                                       record + ParticleRecord::doubles);
+      ++report.sent_away;
+    }
+    std::vector<double> send;
+    std::vector<int> send_counts, send_displs;
+    try {
+      outbox.pack(send, send_counts, send_displs);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    throw_if_any(cart, error);
+    std::vector<int> receive_counts(outbox.by_destination.size(), 0);
+    if (any_far)
+      MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, cart);
+    else
+      MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT,
+                            handles.graph);
+    std::size_t received = 0;
+    const std::vector<int> receive_displs = displacements(receive_counts, received);
+    const std::size_t kept = owned.size();
+    owned.resize(kept + received * ParticleRecord::doubles);
+    if (any_far)
+      MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
+                    owned.data() + kept, receive_counts.data(), receive_displs.data(),
+                    handles.record, cart);
+    else
+      MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
+                             owned.data() + kept, receive_counts.data(), receive_displs.data(),
+                             handles.record, handles.graph);
+    report.migration_bytes_sent = send.size() * sizeof(double);
+  }
+  const std::size_t owned_count = owned.size() / ParticleRecord::doubles;
+  report.owned = owned_count;
+  const double migrated = MPI_Wtime();
+  report.seconds_migration = migrated - start;
+
+  // 2. Ghosts.
+  // Each neighbour's largest bounding radius (-1 without particles): j goes
+  // to rank r only when within cutoff (R_j + min(R_j, R_max(r))) of r's
+  // subdomain (the owner rule above), and a rank with no particles receives
+  // none.
+  double own_largest = owned_count ? 0 : -1;
+  for (std::size_t p = 0; p < owned_count; ++p)
+    own_largest = std::max(own_largest, owned[p * ParticleRecord::doubles + 10]);
+  report.largest_radius = own_largest;
+  std::vector<double> largest_of(neighbours.size(), -1);
+  MPI_Neighbor_allgather(&own_largest, 1, MPI_DOUBLE, largest_of.data(), 1, MPI_DOUBLE,
+                         handles.graph);
+  double largest_neighbour = -1;
+  for (double r : largest_of) largest_neighbour = std::max(largest_neighbour, r);
+  std::vector<double> ghosts;
+  {
+    Outbox outbox;
+    outbox.by_destination.resize(neighbours.size());
+    std::vector<int> to;  // the neighbours (indices) one particle goes to
+    // Per axis: the offsets of the slabs within reach, and their distance
+    // (in unit coordinates) from the particle.
+    std::vector<std::pair<int, double>> slabs[3];
+    for (std::size_t p = 0; largest_neighbour >= 0 && p < owned_count; ++p) {
+      const double* record = owned.data() + p * ParticleRecord::doubles;
+      const double x[3] = {record[1], record[2], record[3]};
+      const std::array<double, 3> t = grid.unit(x);
+      const double reach = options.cutoff * (record[10] + std::min(record[10], largest_neighbour));
+      for (int k = 0; k < 3; ++k) {
+        const auto K = std::size_t(k);
+        slabs[k].clear();
+        const double r = unit_reach(k, reach);
+        for (int o = -reach_slabs[K]; o <= reach_slabs[K]; ++o) {
+          // The slab at this offset from the particle's own, unwrapped.
+          const double lo = double(grid.coords[K] + o) / dims[K];
+          const double hi = double(grid.coords[K] + o + 1) / dims[K];
+          const double distance = std::max({0.0, lo - t[K], t[K] - hi});
+          if (distance <= r) slabs[k].push_back({o + reach_slabs[K], distance});
+        }
+      }
+      to.clear();
+      for (const auto& [a, da] : slabs[0])
+        for (const auto& [b, db] : slabs[1])
+          for (const auto& [c, dc] : slabs[2]) {
+            const int r = rank_of_offset[std::size_t((a * span[1] + b) * span[2] + c)];
+            if (r < 0 || r == rank) continue;
+            const auto n = std::size_t(std::lower_bound(neighbours.begin(), neighbours.end(), r) -
+                                       neighbours.begin());
+            if (largest_of[n] < 0) continue;
+            const double reach_n =
+                options.cutoff * (record[10] + std::min(record[10], largest_of[n]));
+            if (da <= unit_reach(0, reach_n) && db <= unit_reach(1, reach_n) &&
+                dc <= unit_reach(2, reach_n))
+              to.push_back(int(n));
+          }
+      std::sort(to.begin(), to.end());
+      to.erase(std::unique(to.begin(), to.end()), to.end());
+      for (int n : to)
+        outbox.by_destination[std::size_t(n)].insert(outbox.by_destination[std::size_t(n)].end(),
+                                                     record, record + ParticleRecord::doubles);
+    }
+    std::vector<double> send;
+    std::vector<int> send_counts, send_displs;
+    try {
+      outbox.pack(send, send_counts, send_displs);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    throw_if_any(cart, error);
+    std::vector<int> receive_counts(neighbours.size(), 0);
+    MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT,
+                          handles.graph);
+    std::size_t received = 0;
+    const std::vector<int> receive_displs = displacements(receive_counts, received);
+    ghosts.resize(received * ParticleRecord::doubles);
+    MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
+                           ghosts.data(), receive_counts.data(), receive_displs.data(),
+                           handles.record, handles.graph);
+    report.ghost_bytes_sent = send.size() * sizeof(double);
+  }
+  const std::size_t ghost_count = ghosts.size() / ParticleRecord::doubles;
+  report.ghosts = ghost_count;
+  const double exchanged = MPI_Wtime();
+  report.seconds_ghosts = exchanged - migrated;
+
+  // 3. The local screen, on the own and ghost particles in the order of
+  // their tags (a pair's lower index is then its lower tag, as in the whole
+  // scene indexed by tag), and the owner rule.
+  struct Entry {
+    std::uint64_t tag;
+    const double* record;
+    bool own;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(owned_count + ghost_count);
+  for (std::size_t p = 0; p < owned_count; ++p) {
+    const double* record = owned.data() + p * ParticleRecord::doubles;
+    entries.push_back({ParticleRecord::tag(record), record, true});
+  }
+  for (std::size_t p = 0; p < ghost_count; ++p) {
+    const double* record = ghosts.data() + p * ParticleRecord::doubles;
+    entries.push_back({ParticleRecord::tag(record), record, false});
+  }
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& x, const Entry& y) { return x.tag < y.tag; });
+  for (std::size_t k = 1; k < entries.size(); ++k)
+    if (entries[k].tag == entries[k - 1].tag) {
+      error = "tag " + std::to_string(entries[k].tag) + " is given to two particles";
+      break;
+    }
+  throw_if_any(cart, error);
+  ParticleStore store;
+  ScreenedPairs pairs;
+  try {
+    store.reserve(entries.size());
+    for (const Entry& e : entries) store.add_particle(ParticleRecord::read(e.record));
+    report.screen = pwcontact::screen_pairs(store, box, options, pairs);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  throw_if_any(cart, error);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const Entry& a = entries[pairs.i[k]];  // (the smaller tag)
+    const Entry& b = entries[pairs.j[k]];
+    const bool keeper_own = b.record[10] < a.record[10] ? b.own : a.own;
+    if (!keeper_own) continue;
+    out.i.push_back(a.tag);
+    out.j.push_back(b.tag);
+    if (options.with_mu2) out.mu2.push_back(pairs.mu2[k]);
+  }
+  report.seconds_screen = MPI_Wtime() - exchanged;
+  return report;
+}
+
+}  // namespace
+
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint64_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out) {
+  return screen_distributed(comm, particles, tags, box, options, out);
+}
+
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint32_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out) {
+  return screen_distributed(comm, particles, tags, box, options, out);
+}
+
+TaggedPairs gather_pairs(MPI_Comm comm, const TaggedPairs& local, int root) {
+  int size = 1, rank = 0;
+  MPI_Comm_size(comm, &size);
+  MPI_Comm_rank(comm, &rank);
+  std::string error;
+  if (local.j.size() != local.i.size() ||
+      (!local.mu2.empty() && local.mu2.size() != local.i.size()))
+    error = "i, j and mu2 differ in length";
+  // mu2 from every rank when any has it (a rank with no pairs has none).
+  int has_mu2 = local.mu2.empty() ? 0 : 1, any_mu2 = 0;
+  MPI_Allreduce(&has_mu2, &any_mu2, 1, MPI_INT, MPI_MAX, comm);
+  unsigned long long total = 0, count = local.size();
+  MPI_Allreduce(&count, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+  if (error.empty() && total > (unsigned long long)INT_MAX)
+    error = "more than 2^31 - 1 pairs for one rank";
+  if (error.empty() && any_mu2 && local.mu2.size() != local.i.size())
+    error = "some ranks have mu2 and this one has not";
+  if (error.empty() && (root < 0 || root >= size))
+    error = "root " + std::to_string(root) + " is not a rank of the " + std::to_string(size);
+  throw_if_any(comm, error, "gather_pairs");
+  const bool with_mu2 = any_mu2 != 0;
+  int n = int(local.size());
+  std::vector<int> counts(rank == root ? std::size_t(size) : 0);
+  MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, root, comm);
+  std::size_t received = 0;
+  std::vector<int> displs;
+  if (rank == root) displs = displacements(counts, received);
+  TaggedPairs all_pairs;
+  all_pairs.i.resize(received);
+  all_pairs.j.resize(received);
+  MPI_Gatherv(local.i.data(), n, MPI_UINT64_T, all_pairs.i.data(), counts.data(), displs.data(),
+              MPI_UINT64_T, root, comm);
+  MPI_Gatherv(local.j.data(), n, MPI_UINT64_T, all_pairs.j.data(), counts.data(), displs.data(),
+              MPI_UINT64_T, root, comm);
+  if (with_mu2) {
+    all_pairs.mu2.resize(received);
+    MPI_Gatherv(local.mu2.data(), n, MPI_DOUBLE, all_pairs.mu2.data(), counts.data(), displs.data(),
+                MPI_DOUBLE, root, comm);
+  }
+  if (rank != root) return {};
+  std::vector<std::size_t> order(received);
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+    return std::pair(all_pairs.i[x], all_pairs.j[x]) < std::pair(all_pairs.i[y], all_pairs.j[y]);
+  });
+  TaggedPairs sorted;
+  sorted.i.resize(received);
+  sorted.j.resize(received);
+  if (with_mu2) sorted.mu2.resize(received);
+  for (std::size_t k = 0; k < received; ++k) {
+    sorted.i[k] = all_pairs.i[order[k]];
+    sorted.j[k] = all_pairs.j[order[k]];
+    if (with_mu2) sorted.mu2[k] = all_pairs.mu2[order[k]];
+  }
+  return sorted;
+}
+
+}  // namespace pwcontact::mpi
