@@ -40,8 +40,9 @@ packages=(g++ cmake make time libxsimd-dev libeigen3-dev libgtest-dev libgmock-d
 [ "$job" = trade ] && packages+=(gnuplot-nox)  # draws the trade's plot
 [ "$job" = moves-bench ] && packages+=(libfcl-dev)  # the baseline of the trial moves
 # The test job builds the screen over MPI ranks (pwcontact_mpi) and runs it
-# under mpirun (OpenMPI); the sanitizer, fuzz and tsan presets build without it.
-[ "$job" = test ] && packages+=(libopenmpi-dev openmpi-bin)
+# under mpirun (OpenMPI), also from Python (mpi4py); the sanitizer, fuzz and
+# tsan presets build without it.
+[ "$job" = test ] && packages+=(libopenmpi-dev openmpi-bin python3-mpi4py)
 # The scene-file tests also read back what they write with the gsd package.
 case "$job" in test|sanitize) packages+=(python3-gsd) ;; esac
 # The test suite checks the C++ layout against .clang-format with clang-format 14.

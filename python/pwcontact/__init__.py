@@ -32,6 +32,7 @@ from . import _pwcontact as _core
 __all__ = [
     "Box",
     "ContactResult",
+    "DistributedScreenResult",
     "MovingScene",
     "OverlapResult",
     "ScreenResult",
@@ -385,9 +386,31 @@ def _check_in_plane(positions, orientations) -> None:
                              f"({', '.join(map(repr, o[tilted[0]]))}) is not a rotation about z")
 
 
+class DistributedScreenResult:
+    """The pairs a screen over MPI ranks found (``screen(..., comm=...)``).
+
+    ``pairs`` (M, 2) uint64 of global ids (tags), each (i, j) with i < j,
+    sorted: this rank's pairs under the owner rule (every pair of the scene
+    on exactly one rank), or with ``gather=True`` every pair on rank 0 (and
+    none on the others), in the order screen() gives for particles indexed
+    by tag; ``mu2`` (M,) when asked for (else None); ``report`` (a dict: the
+    grid of ranks, this rank's place in it, particles owned, ghosts
+    received, bytes sent, seconds of each stage).
+    """
+
+    def __init__(self, raw: dict):
+        self.pairs = raw["pairs"]
+        self.mu2 = raw["mu2"]
+        self.report = raw["report"]
+
+    def __len__(self) -> int:
+        return len(self.pairs)
+
+
 def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None, typeid=None,
            box=None, cutoff: float = 1.0, with_mu2: bool = False, threads: int = 0,
-           **ignored) -> ScreenResult:
+           comm=None, tags=None, gather: bool = False,
+           **ignored) -> Union[ScreenResult, DistributedScreenResult]:
     """Every pair of particles with mu < cutoff, exactly (cell lists, exact
     prefilters, the batch kernels on what they leave).
 
@@ -402,6 +425,14 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     cutoff >= 1 reports near pairs too (mu < cutoff). Keyword arguments that
     read_gsd / read_lammps_* return beside these (type_names, frame, ...)
     are accepted and ignored, so that ``screen(**read_gsd(path))`` works.
+
+    comm: an mpi4py communicator (python3-mpi4py; a module built with MPI,
+    ``pwcontact.with_mpi``): a collective call, every rank passing the
+    particles it holds (anywhere in the box) with their global ``tags`` (N,)
+    (default: numbered by rank, rank 0's first); returns a
+    DistributedScreenResult (pairs in tags; ``gather=True``: all of them
+    on rank 0). threads is then per rank. An error in any rank's input is
+    raised on every rank.
     """
     for key in ignored:
         if key not in ("type_names", "frame", "frames", "id"):
@@ -415,6 +446,18 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     positions = np.asarray(positions, dtype=float)
     if b is not None and b.is2D:
         _check_in_plane(positions, orientations)
+    if comm is not None:
+        if not _core.with_mpi:
+            raise RuntimeError("screen(comm=...): this pwcontact was built without MPI "
+                               "(PWCONTACT_BUILD_MPI, with libopenmpi-dev installed)")
+        if not hasattr(comm, "py2f"):
+            raise TypeError(f"comm must be an mpi4py communicator, got {type(comm).__name__}")
+        raw = _core.screen_mpi(positions, orientations, semi_axes, q, type_semi_axes, typeid,
+                               None if b is None else b._core(), float(cutoff), bool(with_mu2),
+                               int(threads), int(comm.py2f()), tags, bool(gather))
+        return DistributedScreenResult(raw)
+    if tags is not None or gather:
+        raise ValueError("tags and gather are for screen(comm=...) over MPI ranks")
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                        None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads))
     return ScreenResult(raw, positions, b)

@@ -28,6 +28,9 @@
 #include "fixtures/families.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/pwcontact.hpp"
+#if PWCONTACT_WITH_MPI
+#include "pwcontact/mpi.hpp"
+#endif
 
 namespace py = pybind11;
 using pwcontact::Status;
@@ -548,6 +551,86 @@ py::dict screen(const py::object& positions, const py::object& orientations,
   return screened(pairs, store.size(), with_mu2, report);
 }
 
+#if PWCONTACT_WITH_MPI
+// The screen over the ranks of an MPI communicator (given by its Fortran
+// handle, as mpi4py's Comm.py2f() gives it): this rank's particles, their
+// global ids (tags; None: numbered by rank, rank 0's first), the pairs of
+// this rank under the owner rule, or every rank's on rank 0 with gather.
+py::dict screen_mpi(const py::object& positions, const py::object& orientations,
+                    const py::object& semi_axes, const py::object& q,
+                    const py::object& type_semi_axes, const py::object& type_id,
+                    const py::object& box, double cutoff, bool with_mu2, int threads,
+                    std::int64_t comm_handle, const py::object& tags_in, bool gather) {
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (!initialized || finalized)
+    throw py::value_error(
+        "comm: MPI is not initialised (import mpi4py.MPI first) or already "
+        "finalised");
+  const MPI_Comm comm = MPI_Comm_f2c(MPI_Fint(comm_handle));
+  const int used = thread_count(threads);
+  const pwcontact::ParticleStore store =
+      make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+  const std::size_t n = store.size();
+  std::vector<std::uint64_t> tags(n);
+  if (tags_in.is_none()) {
+    unsigned long long count = n, first = 0;
+    MPI_Exscan(&count, &first, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    if (rank == 0) first = 0;  // (MPI_Exscan leaves rank 0's result undefined)
+    for (std::size_t k = 0; k < n; ++k) tags[k] = first + k;
+  } else {
+    auto given = py::array_t<std::uint64_t, py::array::forcecast>::ensure(tags_in);
+    if (!given || given.ndim() != 1 || std::size_t(given.shape(0)) != n)
+      throw py::value_error("tags must have shape (" + std::to_string(n) + ",)");
+    const auto view = given.unchecked<1>();
+    for (std::size_t k = 0; k < n; ++k) tags[k] = view(py::ssize_t(k));
+  }
+  pwcontact::ScreenOptions options;
+  options.cutoff = cutoff;
+  options.with_mu2 = with_mu2;
+  options.threads = used;
+  const pwcontact::Box b = make_box(box);
+  pwcontact::mpi::TaggedPairs pairs;
+  pwcontact::mpi::DistributedReport report;
+  {
+    py::gil_scoped_release release;
+    report = pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs);
+    if (gather) pairs = pwcontact::mpi::gather_pairs(comm, pairs);
+  }
+  const std::size_t m = pairs.size();
+  py::array_t<std::uint64_t> out({py::ssize_t(m), py::ssize_t(2)});
+  std::uint64_t* p = out.mutable_data();
+  for (std::size_t k = 0; k < m; ++k) {
+    p[2 * k] = pairs.i[k];
+    p[2 * k + 1] = pairs.j[k];
+  }
+  py::dict d;
+  d["pairs"] = out;
+  if (with_mu2)
+    d["mu2"] = py::array_t<double>(py::ssize_t(m), pairs.mu2.data());
+  else
+    d["mu2"] = py::none();
+  py::dict r;
+  r["dims"] = py::make_tuple(report.dims[0], report.dims[1], report.dims[2]);
+  r["coords"] = py::make_tuple(report.coords[0], report.coords[1], report.coords[2]);
+  r["given"] = report.given;
+  r["owned"] = report.owned;
+  r["sent_away"] = report.sent_away;
+  r["ghosts"] = report.ghosts;
+  r["neighbours"] = report.neighbours;
+  r["ghost_bytes_sent"] = report.ghost_bytes_sent;
+  r["migration_bytes_sent"] = report.migration_bytes_sent;
+  r["seconds_migration"] = report.seconds_migration;
+  r["seconds_ghosts"] = report.seconds_ghosts;
+  r["seconds_screen"] = report.seconds_screen;
+  d["report"] = r;
+  return d;
+}
+#endif
+
 // The store's centres (N, 3), or its forms (N, 6), as rows.
 py::array_t<double> store_rows(const pwcontact::ParticleStore& store, bool forms) {
   const std::size_t n = store.size();
@@ -734,6 +817,15 @@ PYBIND11_MODULE(_pwcontact, m) {
   m.def("screen", &screen, py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"),
         py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"),
         py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"));
+#if PWCONTACT_WITH_MPI
+  m.attr("with_mpi") = true;
+  m.def("screen_mpi", &screen_mpi, py::arg("positions"), py::arg("orientations"),
+        py::arg("semi_axes"), py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"),
+        py::arg("box"), py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"), py::arg("comm"),
+        py::arg("tags"), py::arg("gather"));
+#else
+  m.attr("with_mpi") = false;
+#endif
   m.def("read_gsd", [](const std::string& path, std::int64_t frame) {
     pwcontact::Scene s;
     {
