@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli/number_table.hpp"
+#include "cli/screen_command.hpp"
 #include "cli/screen_summary.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
@@ -445,10 +446,15 @@ void write_output(OutputFile& output, ScreenOutput outputs, bool with_mu2,
   }
 }
 
-ExitStatus run_screen(const Arguments& arguments) {
+// `pwcontact screen` on one process, or on every rank of a distributed run
+// (ScreenRanks, screen_command.hpp): the root alone opens the outputs,
+// reads the input and writes the results; every rank parses the same
+// arguments and takes part in the screen.
+ExitStatus run_screen_on(const Arguments& arguments, const ScreenRanks* ranks) {
+  const bool root = !ranks || ranks->root;
   ScreenCommand command;
   if (!parse_screen(arguments, command)) {
-    std::fputs(full_help(screen_subcommand).c_str(), stdout);
+    if (root) std::fputs(full_help(screen_subcommand).c_str(), stdout);
     return ExitStatus::success;
   }
   const ScreenCommandOptions& options = command.options;
@@ -456,13 +462,32 @@ ExitStatus run_screen(const Arguments& arguments) {
   // PWCONTACT_ISA and the CPU, checked before the input is read: a bad value
   // is a usage error now rather than after the reading.
   resolve_instruction_set(Isa::automatic);
-  OutputFile output(options.output);
-  std::optional<OutputFile> gsd_output;
-  if (!options.gsd_output.empty()) gsd_output.emplace(options.gsd_output);
-
-  const Stopwatch reading;
-  const LoadedScene scene = load_scene(command, threads);
-  const double read_seconds = reading.seconds();
+  std::optional<OutputFile> output, gsd_output;
+  LoadedScene scene;
+  double read_seconds = 0;
+  // The root's failure to open or read is every rank's: its exit status is
+  // shared before the screen (the other ranks return it, the root throws).
+  int status = 0;
+  std::optional<CommandError> failure;
+  if (root) {
+    try {
+      output.emplace(options.output);
+      if (!options.gsd_output.empty()) gsd_output.emplace(options.gsd_output);
+      const Stopwatch reading;
+      scene = load_scene(command, threads);
+      read_seconds = reading.seconds();
+    } catch (const CommandError& e) {
+      if (!ranks) throw;
+      status = int(e.exit_status());
+      failure = e;
+    }
+  }
+  if (ranks) {
+    status = ranks->share_status(status);
+    if (failure) throw *failure;
+    if (status != 0) return ExitStatus(status);
+    scene.box = ranks->share_box(scene.box);
+  }
 
   ScreenOptions screen_options;
   screen_options.cutoff = options.cutoff;
@@ -471,13 +496,16 @@ ExitStatus run_screen(const Arguments& arguments) {
   ScreenedPairs pairs;
   ScreenReport report;
   try {
-    report = screen_pairs(scene.particles, scene.box, screen_options, pairs);
+    report = ranks ? ranks->screen(scene.particles, scene.box, screen_options, pairs)
+                   : screen_pairs(scene.particles, scene.box, screen_options, pairs);
   } catch (const std::invalid_argument& e) {
-    throw CommandError(ExitStatus::usage_error, scene.source + ": " + e.what());
+    throw CommandError(ExitStatus::usage_error,
+                       (root ? scene.source + ": " : std::string()) + e.what());
   }
+  if (!root) return ExitStatus::success;
 
   const Stopwatch writing;
-  write_output(output, options.outputs, options.with_mu2, pairs, scene.particles.size(), threads);
+  write_output(*output, options.outputs, options.with_mu2, pairs, scene.particles.size(), threads);
   if (gsd_output) {
     std::ostringstream bytes;
     try {
@@ -491,7 +519,7 @@ ExitStatus run_screen(const Arguments& arguments) {
     gsd_output->write(bytes.str());
     gsd_output->commit();
   }
-  output.commit();
+  output->commit();
   std::fprintf(stderr,
                "pwcontact screen: %zu %s from %s (read in %s), %zu pairs, %s to %s "
                "(written in %s)\n%s",
@@ -499,19 +527,26 @@ ExitStatus run_screen(const Arguments& arguments) {
                scene.box.two_dimensional || command.format == SceneFormat::ellipse ? "ellipses"
                                                                                    : "ellipsoids",
                scene.source.c_str(), describe_seconds(read_seconds).c_str(), pairs.size(),
-               output_name(options.outputs), output.name().c_str(),
+               output_name(options.outputs), output->name().c_str(),
                describe_seconds(writing.seconds()).c_str(),
-               describe_screen(report, scene.box, options.cutoff).c_str());
+               ranks ? ranks->describe(report).c_str()
+                     : describe_screen(report, scene.box, options.cutoff).c_str());
   if (gsd_output)
     std::fprintf(stderr, "  the frame with log/particles/overlaps to %s\n",
                  gsd_output->name().c_str());
   return ExitStatus::success;
 }
 
+ExitStatus run_screen(const Arguments& arguments) { return run_screen_on(arguments, nullptr); }
+
 }  // namespace
 
 const Subcommand screen_subcommand = {
     "screen", "every pair of a scene of ellipsoids with mu < cutoff (overlaps, neighbour lists)",
     screen_options_help, run_screen, parse_screen_only};
+
+ExitStatus run_screen_over(const Arguments& arguments, const ScreenRanks& ranks) {
+  return run_screen_on(arguments, &ranks);
+}
 
 }  // namespace pwcontact::cli
