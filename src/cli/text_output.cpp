@@ -1,6 +1,7 @@
 #include "cli/text_output.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -121,10 +122,21 @@ OutputFile::OutputFile(const std::string& path) {
   const std::filesystem::path directory = target.parent_path();
   std::string pattern = (directory.empty() ? std::string() : directory.string() + "/") + "." +
                         target.filename().string() + ".tmp-XXXXXX";
+  // Created and registered with the handled signals blocked: a signal that
+  // arrives in between (it did, under AddressSanitizer's slower start) is
+  // delivered once the handlers know the file, which they then remove.
+  sigset_t handled, previous;
+  sigemptyset(&handled);
+  for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&handled, signal_number);
+  pthread_sigmask(SIG_BLOCK, &handled, &previous);
   const int descriptor = mkstemp(pattern.data());
-  if (descriptor < 0) fail_to_write(name_, errno);
-  temporary_path_ = pattern;
-  pending_slot_ = set_pending(temporary_path_);
+  const int mkstemp_error = errno;
+  if (descriptor >= 0) {
+    temporary_path_ = pattern;
+    pending_slot_ = set_pending(temporary_path_);
+  }
+  pthread_sigmask(SIG_SETMASK, &previous, nullptr);
+  if (descriptor < 0) fail_to_write(name_, mkstemp_error);
   fchmod(descriptor, mode);
   file_ = fdopen(descriptor, "wb");
   if (!file_) {
