@@ -174,6 +174,42 @@ std::vector<int> displacements(const std::vector<int>& counts, std::size_t& tota
   return displs;
 }
 
+// Sends each destination its records and appends what this rank receives
+// to `received`: over the neighbour graph (destinations in the graph's
+// order), or to any rank of `comm` (destinations by rank) when `graph` is
+// MPI_COMM_NULL. Collective; an outbox too large for int counts is an error
+// on every rank. Returns the bytes sent.
+std::size_t exchange(const Outbox& outbox, MPI_Comm comm, MPI_Comm graph, MPI_Datatype record,
+                     std::vector<double>& received) {
+  std::vector<double> send;
+  std::vector<int> send_counts, send_displs;
+  std::string error;
+  try {
+    outbox.pack(send, send_counts, send_displs);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  throw_if_any(comm, error);
+  std::vector<int> receive_counts(outbox.by_destination.size(), 0);
+  if (graph == MPI_COMM_NULL)
+    MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, comm);
+  else
+    MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, graph);
+  std::size_t count = 0;
+  const std::vector<int> receive_displs = displacements(receive_counts, count);
+  const std::size_t kept = received.size();
+  received.resize(kept + count * ParticleRecord::doubles);
+  if (graph == MPI_COMM_NULL)
+    MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), record,
+                  received.data() + kept, receive_counts.data(), receive_displs.data(), record,
+                  comm);
+  else
+    MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), record,
+                           received.data() + kept, receive_counts.data(), receive_displs.data(),
+                           record, graph);
+  return send.size() * sizeof(double);
+}
+
 template <class Tag>
 DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particles,
                                      const std::vector<Tag>& tags, const Box& box,
@@ -378,33 +414,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
                                        record + ParticleRecord::doubles);
       ++report.sent_away;
     }
-    std::vector<double> send;
-    std::vector<int> send_counts, send_displs;
-    try {
-      outbox.pack(send, send_counts, send_displs);
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    throw_if_any(cart, error);
-    std::vector<int> receive_counts(outbox.by_destination.size(), 0);
-    if (any_far)
-      MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, cart);
-    else
-      MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT,
-                            handles.graph);
-    std::size_t received = 0;
-    const std::vector<int> receive_displs = displacements(receive_counts, received);
-    const std::size_t kept = owned.size();
-    owned.resize(kept + received * ParticleRecord::doubles);
-    if (any_far)
-      MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
-                    owned.data() + kept, receive_counts.data(), receive_displs.data(),
-                    handles.record, cart);
-    else
-      MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
-                             owned.data() + kept, receive_counts.data(), receive_displs.data(),
-                             handles.record, handles.graph);
-    report.migration_bytes_sent = send.size() * sizeof(double);
+    report.migration_bytes_sent =
+        exchange(outbox, cart, any_far ? MPI_COMM_NULL : handles.graph, handles.record, owned);
   }
   const std::size_t owned_count = owned.size() / ParticleRecord::doubles;
   report.owned = owned_count;
@@ -471,24 +482,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
         outbox.by_destination[std::size_t(n)].insert(outbox.by_destination[std::size_t(n)].end(),
                                                      record, record + ParticleRecord::doubles);
     }
-    std::vector<double> send;
-    std::vector<int> send_counts, send_displs;
-    try {
-      outbox.pack(send, send_counts, send_displs);
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    throw_if_any(cart, error);
-    std::vector<int> receive_counts(neighbours.size(), 0);
-    MPI_Neighbor_alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT,
-                          handles.graph);
-    std::size_t received = 0;
-    const std::vector<int> receive_displs = displacements(receive_counts, received);
-    ghosts.resize(received * ParticleRecord::doubles);
-    MPI_Neighbor_alltoallv(send.data(), send_counts.data(), send_displs.data(), handles.record,
-                           ghosts.data(), receive_counts.data(), receive_displs.data(),
-                           handles.record, handles.graph);
-    report.ghost_bytes_sent = send.size() * sizeof(double);
+    ghosts.clear();
+    report.ghost_bytes_sent = exchange(outbox, cart, handles.graph, handles.record, ghosts);
   }
   const std::size_t ghost_count = ghosts.size() / ParticleRecord::doubles;
   report.ghosts = ghost_count;
