@@ -807,6 +807,68 @@ TEST_P(Promise, AFormFlatBeyondTheDoublesResolutionIsAnsweredRightOrFlagged) {
   check(scalar_mu2, scalar_status, eps, "a form flat to 1e-20 .. 1e-323, scalar path");
 }
 
+TEST_P(Promise, TwoFormsFlatAlongOneAxisGiveAFiniteAnswerOrAStatus) {
+  // Was (found by kernels_fuzz): Q1 = diag(1, 1.8e-307, 1), Q2 = diag(1,
+  // 1.5e-314, 1), r12 = (0.0062, 2.25, 1e-308), mixed precision, mu^2 alone
+  // asked for: mu2 = inf with status ok. The double part of a
+  // mixed-precision solve took lanes by the range of the forms' largest
+  // entries alone, which does not bound r^T Qi^-1 r; with both forms flat
+  // along r12, f overflowed. Here both forms are flat (1e-300 .. 1e-323)
+  // along the same axis and r12 (0.5 .. 3 long) nearly along it: mu^2 near
+  // or beyond overflow, with every output set and iteration count, in every
+  // precision.
+  Engine engine(918);
+  std::vector<DiagonalPair> pairs;
+  for (int n = 0; n < 96; ++n) {
+    DiagonalPair p;
+    for (int k = 0; k < 3; ++k) {
+      p.d1[k] = log_uniform(engine, 0.25, 4);
+      p.d2[k] = log_uniform(engine, 0.25, 4);
+    }
+    p.d1[n % 3] = std::max(std::pow(10.0, -300 - 23 * uniform01(engine)), 5e-324);
+    p.d2[n % 3] = std::max(std::pow(10.0, -300 - 23 * uniform01(engine)), 5e-324);
+    // r12 along the flat axis, its other components 1 .. 1e-8 of that.
+    const double length = 0.5 + 2.5 * uniform01(engine);
+    const double side = std::pow(10.0, -8 * uniform01(engine));
+    for (int k = 0; k < 3; ++k)
+      p.r[k] = k == n % 3 ? length : length * side * (uniform01(engine) - 0.5);
+    pairs.push_back(p);
+  }
+  std::vector<Pair<double>> as_pairs;
+  std::vector<long double> exact;
+  for (const DiagonalPair& p : pairs) {
+    as_pairs.push_back(
+        make_pair(p.r, {p.d1[0], 0, 0, p.d1[1], 0, p.d1[2]}, {p.d2[0], 0, 0, p.d2[1], 0, p.d2[2]}));
+    exact.push_back(diagonal_maximum(p).first);
+  }
+  const Requested mu2_and_status{false, true, false, false, false};
+  for (Precision precision :
+       {Precision::double_precision, Precision::mixed, Precision::single_precision})
+    for (int iterations : {0, 1, 3})
+      for (const Requested& requested : {mu2_and_status, Requested::everything()}) {
+        const std::string label = what("two forms flat along one axis", GetParam(), precision) +
+                                  ", " + std::to_string(iterations) + " iterations, " +
+                                  describe(requested);
+        const BatchOptions options = with_precision(with_isa(GetParam(), iterations), precision);
+        const BatchRun<double> run = run_batch(make_batch(as_pairs), options, requested);
+        for (std::size_t i = 0; i < pairs.size(); ++i) {
+          if (pwcontact::is_valid(run.status[i])) {
+            // (Beyond "finite and positive" the bound, 16 eps cond(Q), says
+            // nothing here: cond(Q(lambda*)) is above 1e290 for every pair.)
+            EXPECT_TRUE(std::isfinite(run.mu2[i]) && run.mu2[i] > 0)
+                << label << ", pair " << i << ": mu2 " << run.mu2[i] << " with status "
+                << pwcontact::status_name(run.status[i]) << ", exact " << double(exact[i]);
+          } else if (run.status[i] == Status::out_of_range) {
+            EXPECT_TRUE(std::isinf(run.mu2[i]) && exact[i] > 1e300L)
+                << label << ", pair " << i << ": out of range with mu2 " << run.mu2[i] << ", exact "
+                << double(exact[i]);
+          } else {
+            EXPECT_EQ(run.status[i], Status::not_converged) << label << ", pair " << i;
+          }
+        }
+      }
+}
+
 // ---------------------------------------------------------------------------
 // A maximiser a few thousand ulps from 1
 

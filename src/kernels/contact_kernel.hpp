@@ -317,20 +317,32 @@ class FullBlock : public LaneGroups<Arch, T> {
 
   // The double block of a mixed-precision solve: starts from the lambda the
   // float lanes reached (lambda_start, one per lane of the block; NaN where
-  // they failed), with the bracket [0, 1].
+  // they failed), with the bracket [0, 1]. It takes only lanes that the cold
+  // start would take: the entries' range (in_range) does not bound the
+  // forms' smallest eigenvalues, the slopes do (was, found by kernels_fuzz:
+  // both forms flat to ~1e-307 along r12, mu^2 only: f overflowed, mu2 = inf
+  // with status ok). The slopes are not computed: a sufficient condition
+  // from traces and determinants decides (slopes_surely_in_range), and the
+  // few lanes it refuses (forms conditioned beyond ~1e12, sizes or distances
+  // beyond 2^60 of each other) go to the reference path. (Measured on random
+  // pairs: that test costs 3 %; computing the slopes for the lanes it
+  // refuses, even where there are none, another 3-4 %, computing them always
+  // 7 %.)
   PWCONTACT_INLINE void start_from(const PairSpan<T>& in, std::size_t from, std::size_t position,
                                    std::size_t real, const T* lambda_start) {
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
+      const PairLanes<B>& p = pair_[u];
       const B start = B::load_unaligned(lambda_start + std::size_t(u) * W);
       lambda_[u] = xsimd::select((start > B(0)) & (start < B(1)), start, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
-      live_[u] = this->usable(u) & in_range<T>(pair_[u]) &
-                 Adjugate<B>(pair_[u].q1).positive_definite(pair_[u].q1) &
-                 Adjugate<B>(pair_[u].q2).positive_definite(pair_[u].q2);
-      coincident_[u] =
-          live_[u] & (pair_[u].r[0] == B(0)) & (pair_[u].r[1] == B(0)) & (pair_[u].r[2] == B(0));
+      const Adjugate<B> a1(p.q1), a2(p.q2);
+      const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
+      const M live = this->usable(u) & in_range<T>(p) & a1.positive_definite(p.q1) &
+                     a2.positive_definite(p.q2);
+      live_[u] = live & (coincident | slopes_surely_in_range(p, a1.det, a2.det));
+      coincident_[u] = live_[u] & coincident;
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
   }
@@ -398,10 +410,13 @@ class FullBlock : public LaneGroups<Arch, T> {
         answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
       // A valid answer is positive (f > 0 inside (0, 1) for distinct
-      // centres; finite, as every quantity of a lane in range): anything else
-      // the arithmetic produced (lambda rounded onto 0 or 1, where f = 0)
-      // goes to the reference path, whatever the tests above said.
-      const M finished = live_[u] & ((done & (answer.f > B(0))) | coincident_[u]);
+      // centres) and finite (as every quantity of a lane in range; checked
+      // all the same, for one compare, since a valid status promises it):
+      // anything else the arithmetic produced (lambda rounded onto 0 or 1,
+      // where f = 0) goes to the reference path, whatever the tests above said.
+      const M usable_answer =
+          (answer.f > B(0)) & (answer.f < B(std::numeric_limits<T>::infinity()));
+      const M finished = live_[u] & ((done & usable_answer) | coincident_[u]);
       write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
       // The reported lambda is the Newton step's, kept in the bracket: for a
       // lane finished by the bound the step may leave the bracket by

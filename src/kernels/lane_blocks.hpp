@@ -229,6 +229,28 @@ PWCONTACT_INLINE auto slopes_in_range(const B& s1, const B& s2) {
          (smallest >= largest * B(Tolerance::slope_ratio));
 }
 
+// A sufficient condition for slopes_in_range (double lanes) that needs no
+// solve: from the traces t_i and determinants d_i of positive definite forms
+// (lambda_max <= t_i, lambda_min >= d_i / t_i^2, so s_i = r^T Qi^-1 r is in
+// [rr / t_i, rr t_i^2 / d_i]), with t_i^3 <= 2^40 d_i, t_min >= 2^-60 t_max
+// and rr within 2^+-60 of t_max: s_i >= 2^-60, s_i <= 2^60 2^40 2^60 = 2^160
+// and s1 / s2 >= 2^-60 / 2^40 = 2^-100, well inside the bounds. (d_i as
+// computed errs by at most ~30 eps t_i^3 = 2^-47 t_i^3, which the factor
+// 2^40 covers; every other rounding is a few eps.) Random and elongated
+// shapes (aspect ratios to 500: t^3 / d ~ 2^21) meet it; a register with a
+// lane that does not computes the slopes.
+template <class B>
+PWCONTACT_INLINE auto slopes_surely_in_range(const PairLanes<B>& p, const B& d1, const B& d2) {
+  static_assert(std::is_same<typename B::value_type, double>::value, "bounds for double lanes");
+  const B t1 = p.q1[0] + p.q1[3] + p.q1[5], t2 = p.q2[0] + p.q2[3] + p.q2[5];
+  const B t_max = xsimd::max(t1, t2);
+  const B rr = p.r[0] * p.r[0] + p.r[1] * p.r[1] + p.r[2] * p.r[2];
+  const B conditioning(0x1p40), ratio(0x1p-60), distance(0x1p60);
+  return (t1 * t1 * t1 <= conditioning * d1) & (t2 * t2 * t2 <= conditioning * d2) &
+         (xsimd::min(t1, t2) >= ratio * t_max) & (rr >= t_max / distance) &
+         (rr <= t_max * distance);
+}
+
 // The power-of-two scaling (eq. 36) has two other copies: the scalar one in
 // pack_unfinished (contact_kernel.hpp), for the lanes it packs, and the
 // reference path's detail::ScaledPair (include/pwcontact/reference.hpp),
