@@ -120,10 +120,14 @@ const std::vector<Family> families_measured = {Family::random, Family::pw85, Fam
 
 // The batch paths measured on each family: full answers on the random and pw85
 // families; overlap answers on the scene-like mix, with the full double answer
-// beside them.
+// beside them, and on the pw85 family (elongated shapes, where float lanes
+// need double most).
 std::vector<Path> batch_paths(Family family) {
   if (family == Family::scene)
     return {Path::batch_double, Path::overlap_double, Path::overlap_mixed, Path::overlap_float};
+  if (family == Family::pw85)
+    return {Path::batch_double, Path::batch_mixed, Path::batch_float, Path::overlap_double,
+            Path::overlap_float};
   return {Path::batch_double, Path::batch_mixed, Path::batch_float};
 }
 

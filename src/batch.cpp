@@ -2,7 +2,10 @@
 // the chosen kernel on each chunk in OpenMP threads, and answers with the
 // reference path the lanes the kernels left (status needs_fallback): lanes
 // that did not converge or stayed undecided, and lanes whose input failed the
-// kernels' cheap checks, which the reference path validates exactly.
+// kernels' cheap checks, which the reference path validates exactly. In
+// single precision the lanes the float kernels leave go to the double
+// kernels first (finish_in_double), and only what those leave to the
+// reference path.
 #include <omp.h>
 
 #include <algorithm>
@@ -13,6 +16,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "kernels/kernel_api.hpp"
 #include "pair_overlap_solver.hpp"
@@ -175,11 +179,13 @@ kernels::Scratch thread_scratch() {
 // (a pass over the whole batch afterwards would cost several % of a call).
 struct ChunkTally {
   std::size_t fallbacks = 0;
+  std::size_t finished_in_double = 0;
   std::size_t status_counts[status_count] = {};
   std::size_t overlapping = 0;
 
   void add(const ChunkTally& other) {
     fallbacks += other.fallbacks;
+    finished_in_double += other.finished_in_double;
     for (int s = 0; s < status_count; ++s) status_counts[s] += other.status_counts[s];
     overlapping += other.overlapping;
   }
@@ -222,6 +228,7 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
     errors.rethrow_if_failed();
   }
   report.fallbacks = total.fallbacks;
+  report.finished_in_double = total.finished_in_double;
   for (int s = 0; s < status_count; ++s) {
     report.status_counts[s] = total.status_counts[s];
     if (!is_valid(static_cast<Status>(s))) report.invalid += total.status_counts[s];
@@ -234,10 +241,11 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
 
 // Calls `answer(i)` for every lane of [begin, begin + n) the kernels left
 // (status needs_fallback; they wrote ok or needs_fallback for every lane),
-// which gives it its final status, and tallies the chunk's statuses.
+// which gives it its final status, and tallies the chunk's statuses (but for
+// `counted` lanes whose status finish_in_double counted).
 template <class Answer>
 void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTally& tally,
-                       Answer&& answer) {
+                       Answer&& answer, std::size_t counted = 0) {
   static_assert(sizeof(Status) == 1, "statuses are searched for as bytes");
   const unsigned char* const first = reinterpret_cast<const unsigned char*>(status);
   const unsigned char* at = first + begin;
@@ -251,7 +259,59 @@ void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTa
     ++tally.status_counts[static_cast<int>(status[i])];
     at = static_cast<const unsigned char*>(found) + 1;
   }
-  tally.status_counts[static_cast<int>(Status::ok)] += n - left;
+  tally.status_counts[static_cast<int>(Status::ok)] += n - left - counted;
+}
+
+// The lanes of a chunk that a single-precision kernel left, gathered and
+// widened (exactly) into double lanes, with room for the double kernels'
+// answers: one per thread, sized for a chunk, allocated on first use.
+struct WideLanes {
+  std::vector<double> values[15];       // r12 (3), q1 (6), q2 (6)
+  std::vector<std::uint32_t> position;  // in the chunk
+  std::vector<Status> status;
+  std::vector<std::uint8_t> overlap;
+  std::vector<double> mu2, lambda, geometry[9];
+  std::size_t count = 0;
+
+  WideLanes() {
+    for (auto& v : values) v.resize(chunk_pairs);
+    position.resize(chunk_pairs);
+    status.resize(chunk_pairs);
+  }
+  kernels::PairSpan<double> span() const {
+    kernels::PairSpan<double> in;
+    for (int k = 0; k < 3; ++k) in.r12[k] = values[k].data();
+    for (int k = 0; k < 6; ++k) {
+      in.q1[k] = values[3 + k].data();
+      in.q2[k] = values[9 + k].data();
+    }
+    return in;
+  }
+};
+
+WideLanes& thread_wide_lanes() {
+  thread_local WideLanes lanes;
+  return lanes;
+}
+
+// Gathers the lanes of [begin, begin + n) left with status needs_fallback.
+template <class T>
+WideLanes& gather_left_lanes(const PairBatchView<T>& pairs, const Status* status, std::size_t begin,
+                             std::size_t n) {
+  WideLanes& wide = thread_wide_lanes();
+  wide.count = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (status[begin + j] != kernels::needs_fallback) continue;
+    const ScalarPair p = scalar_pair(pairs, begin + j);
+    const std::size_t c = wide.count++;
+    for (int k = 0; k < 3; ++k) wide.values[k][c] = p.r[k];
+    for (int k = 0; k < 6; ++k) {
+      wide.values[3 + k][c] = p.q1[k];
+      wide.values[9 + k][c] = p.q2[k];
+    }
+    wide.position[c] = std::uint32_t(j);
+  }
+  return wide;
 }
 
 // The number of ones among n bytes that are each 0 or 1: eight at a time,
@@ -339,6 +399,83 @@ bool answer_with_reference(const PairBatchView<T>& pairs, const ContactOutputs<T
   return solved || ref.status == Status::not_converged;
 }
 
+// Single precision: the lanes the float kernel left in [begin, begin + n),
+// finished by the double kernel (exactly widened: the same pairs) before any
+// goes to the reference path. The float kernels leave the lanes whose
+// factorisation shows element growth beyond what float resolves (elongated
+// shapes: 41 % of the pw85 family's lanes) besides those that did not
+// converge; a double lane costs a few evaluations where the reference path
+// costs a scalar solve. Answers are rounded once to T, and a mu^2 beyond T's
+// range is out_of_range, as the reference path's. Returns how many lanes it
+// finished with out_of_range (their statuses counted here).
+template <class T>
+std::size_t finish_in_double(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
+                             Status* status, std::size_t begin, std::size_t n, unsigned bits,
+                             kernels::FullKernel<double, double> kernel,
+                             const kernels::ChunkSettings& settings,
+                             const kernels::Scratch& scratch, kernels::ChunkCounters& counters,
+                             ChunkTally& tally) {
+  WideLanes& wide = gather_left_lanes(pairs, status, begin, n);
+  if (wide.count == 0) return 0;
+  auto room = [](std::vector<double>& v) {
+    if (v.empty()) v.resize(chunk_pairs);
+    return v.data();
+  };
+  kernels::ResultSpan<double> result{room(wide.mu2),
+                                     bits & kernels::with_lambda ? room(wide.lambda) : nullptr,
+                                     wide.status.data(),
+                                     {},
+                                     {},
+                                     {}};
+  for (int k = 0; k < 3; ++k) {
+    if (bits & kernels::with_contact_point) result.contact_point[k] = room(wide.geometry[k]);
+    if (bits & kernels::with_normal) result.normal[k] = room(wide.geometry[3 + k]);
+    if (bits & kernels::with_gradient) result.gradient[k] = room(wide.geometry[6 + k]);
+  }
+  kernel(wide.span(), result, wide.count, settings, scratch, counters);
+  std::size_t out_of_range = 0;
+  for (std::size_t c = 0; c < wide.count; ++c) {
+    if (wide.status[c] != Status::ok) continue;  // (needs_fallback: the reference path's)
+    const std::size_t i = begin + wide.position[c];
+    out.mu2[i] = T(wide.mu2[c]);
+    if (bits & kernels::with_lambda) out.lambda[i] = T(wide.lambda[c]);
+    for (int k = 0; k < 3; ++k) {
+      if (bits & kernels::with_contact_point) out.contact_point[k][i] = T(wide.geometry[k][c]);
+      if (bits & kernels::with_normal) out.normal[k][i] = T(wide.geometry[3 + k][c]);
+      if (bits & kernels::with_gradient) out.gradient[k][i] = T(wide.geometry[6 + k][c]);
+    }
+    // (A valid kernel answer is 0 only for coincident centres, exactly.)
+    const bool in_range = wide.mu2[c] == 0 || detail::range_status(out.mu2[i]) == Status::ok;
+    status[i] = in_range ? Status::ok : Status::out_of_range;
+    if (!in_range) {
+      ++out_of_range;
+      ++tally.status_counts[static_cast<int>(Status::out_of_range)];
+    }
+    ++tally.finished_in_double;
+  }
+  return out_of_range;
+}
+
+// The same for overlap answers (exact whatever the range of mu^2).
+template <class T>
+void finish_in_double(const PairBatchView<T>& pairs, const OverlapOutputs& out, std::size_t begin,
+                      std::size_t n, kernels::OverlapKernel<double> kernel,
+                      const kernels::ChunkSettings& settings, const kernels::Scratch& scratch,
+                      kernels::ChunkCounters& counters, ChunkTally& tally) {
+  WideLanes& wide = gather_left_lanes(pairs, out.status, begin, n);
+  if (wide.count == 0) return;
+  if (wide.overlap.empty()) wide.overlap.resize(chunk_pairs);
+  kernel(wide.span(), {wide.overlap.data(), wide.status.data()}, wide.count, settings, scratch,
+         counters);
+  for (std::size_t c = 0; c < wide.count; ++c) {
+    if (wide.status[c] != Status::ok) continue;
+    const std::size_t i = begin + wide.position[c];
+    out.overlap[i] = wide.overlap[c];
+    out.status[i] = Status::ok;
+    ++tally.finished_in_double;
+  }
+}
+
 template <class T>
 BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
                        const BatchOptions& options) {
@@ -350,6 +487,8 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
   kernels::ChunkSettings settings = chunk_settings(report, options);
   settings.outputs = bits;
   const auto kernel = full_kernel<T>(kernels::kernels_for(report.isa), report.precision);
+  const bool single = report.precision == Precision::single_precision;
+  const auto double_kernel = kernels::kernels_for(report.isa).full_double;
 
   // Statuses are needed to find the lanes left to the reference path.
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
@@ -367,9 +506,17 @@ BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& o
           if (bits & kernels::with_gradient) result.gradient[k] = out.gradient[k] + begin;
         }
         kernel(span_at(pairs, begin), result, n, settings, scratch, counters);
-        answer_left_lanes(status, begin, n, tally, [&](std::size_t i) {
-          tally.fallbacks += answer_with_reference(pairs, out, status, i, bits, options.accuracy);
-        });
+        const std::size_t counted =
+            single ? finish_in_double(pairs, out, status, begin, n, bits, double_kernel, settings,
+                                      scratch, counters, tally)
+                   : 0;
+        answer_left_lanes(
+            status, begin, n, tally,
+            [&](std::size_t i) {
+              tally.fallbacks +=
+                  answer_with_reference(pairs, out, status, i, bits, options.accuracy);
+            },
+            counted);
       });
   return report;
 }
@@ -422,20 +569,24 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   check_pairs(pairs);
   if (!out.overlap) throw std::invalid_argument("OverlapOutputs::overlap must not be null");
   const auto kernel = overlap_kernel<T>(kernels::kernels_for(report.isa), report.precision);
+  const bool single = report.precision == Precision::single_precision;
+  const auto double_kernel = kernels::kernels_for(report.isa).overlap_double;
 
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   const OverlapOutputs all{out.overlap, out.status ? out.status : scratch_status.data()};
-  run_chunks(pairs.size, report,
-             [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-                 kernels::ChunkCounters& counters, ChunkTally& tally) {
-               kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings,
-                      scratch, counters);
-               answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
-                 tally.fallbacks +=
-                     answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
-               });
-               tally.overlapping += count_ones(all.overlap + begin, n);
-             });
+  run_chunks(
+      pairs.size, report,
+      [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+          kernels::ChunkCounters& counters, ChunkTally& tally) {
+        kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings,
+               scratch, counters);
+        if (single)
+          finish_in_double(pairs, all, begin, n, double_kernel, settings, scratch, counters, tally);
+        answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
+          tally.fallbacks += answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
+        });
+        tally.overlapping += count_ones(all.overlap + begin, n);
+      });
   return report;
 }
 
@@ -527,6 +678,7 @@ void add_report(BatchReport& total, const BatchReport& call) {
       total.mean_evaluations * double(total.pairs) + call.mean_evaluations * double(call.pairs);
   total.pairs += call.pairs;
   total.fallbacks += call.fallbacks;
+  total.finished_in_double += call.finished_in_double;
   total.invalid += call.invalid;
   for (int s = 0; s < status_count; ++s) total.status_counts[s] += call.status_counts[s];
   total.decided_by_prefilter += call.decided_by_prefilter;

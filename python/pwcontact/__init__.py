@@ -106,8 +106,10 @@ class ContactResult(_Result):
     (N,) uint8 (see Status), and ``contact_point``, ``normal``, ``gradient``
     (N, 3) when asked for (views of (3, N) arrays: columns contiguous).
     Report attributes: ``pairs``, ``fallbacks`` (pairs the SIMD kernels left to
-    the scalar reference path), ``invalid`` (pairs with an invalid status),
-    ``mean_evaluations``, ``isa``, ``precision``.
+    the scalar reference path), ``finished_in_double`` (in single precision,
+    pairs the float kernels left and the double kernels finished), ``invalid``
+    (pairs with an invalid status), ``mean_evaluations``, ``isa``,
+    ``precision``.
     """
 
     @property

@@ -25,6 +25,7 @@ class ContactResult:
     report: dict
     pairs: int
     fallbacks: int
+    finished_in_double: int
     invalid: int
     mean_evaluations: float
     isa: str

@@ -109,6 +109,9 @@ std::string Solution<T>::describe() const {
                 report.mean_evaluations);
   text += "  time " + describe_seconds(seconds) + ", " + describe_rate(report.pairs, seconds) +
           evaluations + "\n  ";
+  if (!reference_path && report.precision == Precision::single_precision)
+    text += "finished in double lanes " + std::to_string(report.finished_in_double) + " (" +
+            percent_of(report.finished_in_double, report.pairs) + "), ";
   if (!reference_path)
     text += "fallbacks " + std::to_string(report.fallbacks) + " (" +
             percent_of(report.fallbacks, report.pairs) + "), ";

@@ -245,6 +245,7 @@ py::dict report_dict(const pwcontact::BatchReport& t) {
   py::dict d;
   d["pairs"] = t.pairs;
   d["fallbacks"] = t.fallbacks;
+  d["finished_in_double"] = t.finished_in_double;
   d["invalid"] = t.invalid;
   d["mean_evaluations"] = t.mean_evaluations;
   d["isa"] = pwcontact::isa_name(t.isa);
