@@ -5,7 +5,8 @@
 // kernels' cheap checks, which the reference path validates exactly. In
 // single precision the lanes the float kernels leave go to the double
 // kernels first (finish_in_double), and only what those leave to the
-// reference path.
+// reference path. (The single-precision overlap kernels do that themselves:
+// their accurate solve runs in double lanes.)
 #include <omp.h>
 
 #include <algorithm>
@@ -269,7 +270,6 @@ struct WideLanes {
   std::vector<double> values[15];       // r12 (3), q1 (6), q2 (6)
   std::vector<std::uint32_t> position;  // in the chunk
   std::vector<Status> status;
-  std::vector<std::uint8_t> overlap;
   std::vector<double> mu2, lambda, geometry[9];
   std::size_t count = 0;
 
@@ -456,26 +456,6 @@ std::size_t finish_in_double(const PairBatchView<T>& pairs, const ContactOutputs
   return out_of_range;
 }
 
-// The same for overlap answers (exact whatever the range of mu^2).
-template <class T>
-void finish_in_double(const PairBatchView<T>& pairs, const OverlapOutputs& out, std::size_t begin,
-                      std::size_t n, kernels::OverlapKernel<double> kernel,
-                      const kernels::ChunkSettings& settings, const kernels::Scratch& scratch,
-                      kernels::ChunkCounters& counters, ChunkTally& tally) {
-  WideLanes& wide = gather_left_lanes(pairs, out.status, begin, n);
-  if (wide.count == 0) return;
-  if (wide.overlap.empty()) wide.overlap.resize(chunk_pairs);
-  kernel(wide.span(), {wide.overlap.data(), wide.status.data()}, wide.count, settings, scratch,
-         counters);
-  for (std::size_t c = 0; c < wide.count; ++c) {
-    if (wide.status[c] != Status::ok) continue;
-    const std::size_t i = begin + wide.position[c];
-    out.overlap[i] = wide.overlap[c];
-    out.status[i] = Status::ok;
-    ++tally.finished_in_double;
-  }
-}
-
 template <class T>
 BatchReport full_batch(const PairBatchView<T>& pairs, const ContactOutputs<T>& out,
                        const BatchOptions& options) {
@@ -569,24 +549,20 @@ BatchReport overlap_only(const PairBatchView<T>& pairs, const OverlapOutputs& ou
   check_pairs(pairs);
   if (!out.overlap) throw std::invalid_argument("OverlapOutputs::overlap must not be null");
   const auto kernel = overlap_kernel<T>(kernels::kernels_for(report.isa), report.precision);
-  const bool single = report.precision == Precision::single_precision;
-  const auto double_kernel = kernels::kernels_for(report.isa).overlap_double;
 
   std::vector<Status> scratch_status(out.status ? 0 : pairs.size);
   const OverlapOutputs all{out.overlap, out.status ? out.status : scratch_status.data()};
-  run_chunks(
-      pairs.size, report,
-      [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
-          kernels::ChunkCounters& counters, ChunkTally& tally) {
-        kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings,
-               scratch, counters);
-        if (single)
-          finish_in_double(pairs, all, begin, n, double_kernel, settings, scratch, counters, tally);
-        answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
-          tally.fallbacks += answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
-        });
-        tally.overlapping += count_ones(all.overlap + begin, n);
-      });
+  run_chunks(pairs.size, report,
+             [&](std::size_t begin, std::size_t n, const kernels::Scratch& scratch,
+                 kernels::ChunkCounters& counters, ChunkTally& tally) {
+               kernel(span_at(pairs, begin), {all.overlap + begin, all.status + begin}, n, settings,
+                      scratch, counters);
+               answer_left_lanes(all.status, begin, n, tally, [&](std::size_t i) {
+                 tally.fallbacks +=
+                     answer_overlap_with_reference(pairs, all, i, settings.cutoff_mu2);
+               });
+               tally.overlapping += count_ones(all.overlap + begin, n);
+             });
   return report;
 }
 

@@ -200,9 +200,11 @@ struct BatchReport {
   std::size_t fallbacks = 0;  // valid pairs the kernels left (not finished, or in overlap
                               // mode undecided), answered by the reference path
                               // (status ok_fallback, or not_converged if it failed too)
-  // Single precision: pairs the float kernels left that the double kernels
-  // finished (status ok, or out_of_range where mu^2 is beyond float's range),
-  // before the reference path took what remained.
+  // Full answers in single precision: pairs the float kernels left that the
+  // double kernels finished (status ok, or out_of_range where mu^2 is beyond
+  // float's range), before the reference path took what remained. (Overlap
+  // answers in single precision decide in float what the cheap bounds decide
+  // and solve the rest in double lanes.)
   std::size_t finished_in_double = 0;
   std::size_t invalid = 0;  // pairs whose status is not valid (mu2 is NaN, or
                             // out of the type's range: out_of_range)

@@ -107,8 +107,8 @@ class ContactResult(_Result):
     (N, 3) when asked for (views of (3, N) arrays: columns contiguous).
     Report attributes: ``pairs``, ``fallbacks`` (pairs the SIMD kernels left to
     the scalar reference path), ``finished_in_double`` (in single precision,
-    pairs the float kernels left and the double kernels finished), ``invalid``
-    (pairs with an invalid status), ``mean_evaluations``, ``isa``,
+    pairs the float kernels left and the double kernels finished),
+    ``invalid`` (pairs with an invalid status), ``mean_evaluations``, ``isa``,
     ``precision``.
     """
 

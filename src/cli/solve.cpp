@@ -109,7 +109,7 @@ std::string Solution<T>::describe() const {
                 report.mean_evaluations);
   text += "  time " + describe_seconds(seconds) + ", " + describe_rate(report.pairs, seconds) +
           evaluations + "\n  ";
-  if (!reference_path && report.precision == Precision::single_precision)
+  if (!reference_path && !overlap_mode && report.precision == Precision::single_precision)
     text += "finished in double lanes " + std::to_string(report.finished_in_double) + " (" +
             percent_of(report.finished_in_double, report.pairs) + "), ";
   if (!reference_path)

@@ -409,13 +409,16 @@ class FullBlock : public LaneGroups<Arch, T> {
       if (settings_.accuracy == Accuracy::high)
         answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
-      // A valid answer is positive (f > 0 inside (0, 1) for distinct
-      // centres) and finite (as every quantity of a lane in range; checked
-      // all the same, for one compare, since a valid status promises it):
-      // anything else the arithmetic produced (lambda rounded onto 0 or 1,
-      // where f = 0) goes to the reference path, whatever the tests above said.
-      const M usable_answer =
-          (answer.f > B(0)) & (answer.f < B(std::numeric_limits<T>::infinity()));
+      // A valid answer is a normal number of T (f > 0 inside (0, 1) for
+      // distinct centres, and finite as every quantity of a lane in range;
+      // but mu^2 itself is not bounded by the lane's range: two discs thin
+      // along r12's directions have mu^2 ~ 1e-38 with slopes ~1, found by
+      // kernels_fuzz in float): anything else the arithmetic produced
+      // (lambda rounded onto 0 or 1, where f = 0; a subnormal mu^2, which is
+      // out_of_range) goes to the reference path, whatever the tests above
+      // said. (f is mu^2: the scaling by t leaves it unchanged.)
+      const M usable_answer = (answer.f >= B(std::numeric_limits<T>::min())) &
+                              (answer.f <= B(std::numeric_limits<T>::max()));
       const M finished = live_[u] & ((done & usable_answer) | coincident_[u]);
       write_lanes<Arch, T, Out>(out.mu2, at_[u], xsimd::select(coincident_[u], B(0), answer.f));
       // The reported lambda is the Newton step's, kept in the bracket: for a

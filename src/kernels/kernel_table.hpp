@@ -18,7 +18,7 @@
       &PWCONTACT_TARGET::solve_full<arch, float, float, float>,    \
       &PWCONTACT_TARGET::solve_overlap<arch, double, double>,      \
       &PWCONTACT_TARGET::solve_overlap_mixed<arch>,                \
-      &PWCONTACT_TARGET::solve_overlap<arch, float, double>,       \
-      &PWCONTACT_TARGET::solve_overlap<arch, float, float>,        \
+      &PWCONTACT_TARGET::solve_overlap_single<arch, double>,       \
+      &PWCONTACT_TARGET::solve_overlap_single<arch, float>,        \
   };                                                               \
   }
