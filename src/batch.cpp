@@ -300,8 +300,16 @@ WideLanes& gather_left_lanes(const PairBatchView<T>& pairs, const Status* status
                              std::size_t n) {
   WideLanes& wide = thread_wide_lanes();
   wide.count = 0;
-  for (std::size_t j = 0; j < n; ++j) {
-    if (status[begin + j] != kernels::needs_fallback) continue;
+  // (Found with memchr, as answer_left_lanes does: on compact shapes, where
+  // a chunk leaves few lanes if any, a byte-by-byte scan measured 3 % of a
+  // float solve.)
+  const unsigned char* const first = reinterpret_cast<const unsigned char*>(status) + begin;
+  const unsigned char* at = first;
+  const unsigned char* const end = first + n;
+  while (const void* found =
+             std::memchr(at, int(std::uint8_t(kernels::needs_fallback)), std::size_t(end - at))) {
+    const std::size_t j = std::size_t(static_cast<const unsigned char*>(found) - first);
+    at = static_cast<const unsigned char*>(found) + 1;
     const ScalarPair p = scalar_pair(pairs, begin + j);
     const std::size_t c = wide.count++;
     for (int k = 0; k < 3; ++k) wide.values[k][c] = p.r[k];
