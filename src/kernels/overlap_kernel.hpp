@@ -475,7 +475,37 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
   positions = reinterpret_cast<std::uint32_t*>(
       scratch_array<double, used>(scratch, first + pair_components));
   count = 0;
-  for (std::size_t i = 0; i < n; ++i) {
+  std::size_t i = 0;
+  if constexpr (is_avx512<Arch>) {
+    // Eight pairs at a time from columns of their own: the lanes left
+    // compressed in a register and stored whole (the arrays have room past
+    // their end), in the order of the loop below. (Measured on the pw85
+    // family in single precision, where about half the lanes are left: the
+    // loop below alone took 28 % of the kernels' time.)
+    if (in.stride[0] == 1 && in.stride[1] == 1 && in.stride[2] == 1) {
+      const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+      for (; i + 8 <= n; i += 8) {
+        // (Of the statuses, only needs_fallback, 0xFF, has its top bit set.)
+        const __mmask8 left = __mmask8(
+            _mm_movemask_epi8(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(status + i))));
+        if (left == 0) continue;
+        for (int k = 0; k < pair_components; ++k) {
+          const In* column = component(in, k) + i;
+          __m512d values;
+          if constexpr (std::is_same<In, double>::value)
+            values = _mm512_loadu_pd(column);
+          else
+            values = _mm512_cvtps_pd(_mm256_loadu_ps(column));
+          _mm512_storeu_pd(columns[k] + count, _mm512_maskz_compress_pd(left, values));
+        }
+        const __m256i at = _mm256_add_epi32(_mm256_set1_epi32(int(i)), lane);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(positions + count),
+                            _mm256_maskz_compress_epi32(left, at));
+        count += std::size_t(__builtin_popcount(unsigned(left)));
+      }
+    }
+  }
+  for (; i < n; ++i) {
     if (status[i] != needs_fallback) continue;
     for (int k = 0; k < pair_components; ++k) columns[k][count] = double(element(in, k, i));
     positions[count++] = std::uint32_t(i);
