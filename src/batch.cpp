@@ -240,13 +240,13 @@ void run_chunks(std::size_t pairs, BatchReport& report, SolveChunk&& solve_chunk
   report.mean_evaluations = pairs ? double(evaluations) / double(pairs) : 0;
 }
 
-// Calls `answer(i)` for every lane of [begin, begin + n) the kernels left
-// (status needs_fallback; they wrote ok or needs_fallback for every lane),
-// which gives it its final status, and tallies the chunk's statuses (but for
-// `counted` lanes whose status finish_in_double counted).
-template <class Answer>
-void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTally& tally,
-                       Answer&& answer, std::size_t counted = 0) {
+// Calls `visit(i)` for every lane i of [begin, begin + n) that the kernels
+// left (status needs_fallback), in order; returns how many. Found with
+// memchr: on compact shapes a chunk leaves few lanes if any, and a byte scan
+// measured 3 % of a float solve.
+template <class Visit>
+std::size_t for_each_left_lane(const Status* status, std::size_t begin, std::size_t n,
+                               Visit&& visit) {
   static_assert(sizeof(Status) == 1, "statuses are searched for as bytes");
   const unsigned char* const first = reinterpret_cast<const unsigned char*>(status);
   const unsigned char* at = first + begin;
@@ -254,12 +254,24 @@ void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTa
   std::size_t left = 0;
   while (const void* found =
              std::memchr(at, int(std::uint8_t(kernels::needs_fallback)), std::size_t(end - at))) {
-    const std::size_t i = std::size_t(static_cast<const unsigned char*>(found) - first);
-    answer(i);
-    ++left;
-    ++tally.status_counts[static_cast<int>(status[i])];
     at = static_cast<const unsigned char*>(found) + 1;
+    visit(std::size_t(static_cast<const unsigned char*>(found) - first));
+    ++left;
   }
+  return left;
+}
+
+// Calls `answer(i)` for every lane of [begin, begin + n) the kernels left
+// (they wrote ok or needs_fallback for every lane), which gives it its final
+// status, and tallies the chunk's statuses (but for `counted` lanes whose
+// status finish_in_double counted).
+template <class Answer>
+void answer_left_lanes(Status* status, std::size_t begin, std::size_t n, ChunkTally& tally,
+                       Answer&& answer, std::size_t counted = 0) {
+  const std::size_t left = for_each_left_lane(status, begin, n, [&](std::size_t i) {
+    answer(i);
+    ++tally.status_counts[static_cast<int>(status[i])];
+  });
   tally.status_counts[static_cast<int>(Status::ok)] += n - left - counted;
 }
 
@@ -300,25 +312,16 @@ WideLanes& gather_left_lanes(const PairBatchView<T>& pairs, const Status* status
                              std::size_t n) {
   WideLanes& wide = thread_wide_lanes();
   wide.count = 0;
-  // (Found with memchr, as answer_left_lanes does: on compact shapes, where
-  // a chunk leaves few lanes if any, a byte-by-byte scan measured 3 % of a
-  // float solve.)
-  const unsigned char* const first = reinterpret_cast<const unsigned char*>(status) + begin;
-  const unsigned char* at = first;
-  const unsigned char* const end = first + n;
-  while (const void* found =
-             std::memchr(at, int(std::uint8_t(kernels::needs_fallback)), std::size_t(end - at))) {
-    const std::size_t j = std::size_t(static_cast<const unsigned char*>(found) - first);
-    at = static_cast<const unsigned char*>(found) + 1;
-    const ScalarPair p = scalar_pair(pairs, begin + j);
+  for_each_left_lane(status, begin, n, [&](std::size_t i) {
+    const ScalarPair p = scalar_pair(pairs, i);
     const std::size_t c = wide.count++;
     for (int k = 0; k < 3; ++k) wide.values[k][c] = p.r[k];
     for (int k = 0; k < 6; ++k) {
       wide.values[3 + k][c] = p.q1[k];
       wide.values[9 + k][c] = p.q2[k];
     }
-    wide.position[c] = std::uint32_t(j);
-  }
+    wide.position[c] = std::uint32_t(i - begin);
+  });
   return wide;
 }
 

@@ -17,8 +17,8 @@
       &PWCONTACT_TARGET::solve_full<arch, float, double, double>,  \
       &PWCONTACT_TARGET::solve_full<arch, float, float, float>,    \
       &PWCONTACT_TARGET::solve_overlap<arch, double, double>,      \
-      &PWCONTACT_TARGET::solve_overlap_mixed<arch>,                \
-      &PWCONTACT_TARGET::solve_overlap_single<arch, double>,       \
-      &PWCONTACT_TARGET::solve_overlap_single<arch, float>,        \
+      &PWCONTACT_TARGET::solve_overlap_float_first<arch, double>,  \
+      &PWCONTACT_TARGET::solve_overlap_float_first<arch, double>,  \
+      &PWCONTACT_TARGET::solve_overlap_float_first<arch, float>,   \
   };                                                               \
   }

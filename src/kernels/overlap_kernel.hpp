@@ -554,29 +554,21 @@ void solve_overlap(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n
   solve_overlap_in_two_passes<Arch, T, T, In>(in, out, n, settings, scratch, counters);
 }
 
-// Single precision (float pairs, or double pairs in float): the cheap pass
-// in float lanes, and the accurate solve of the pairs it leaves in double
-// lanes, on the pairs widened exactly (float pairs), as in mixed precision.
-// Float lanes cannot certify elongated pairs (their margins grow with the
-// element growth: 41 % of the pw85 family's lanes ended in the reference
-// path), and a float accurate solve measured slower than a double one on
-// the pairs the cheap pass leaves, on both families (1M scene pairs: 11.4
-// against 10.8 ms; the pw85 family: 23.1 ms with its leftovers finished in
-// double, against 16.4 ms).
+// Mixed and single precision (double pairs, or float pairs): the cheap pass
+// in float lanes (twice as many per register, with float margins), and the
+// accurate solve of the pairs it leaves in double lanes, on the pairs
+// widened exactly (float pairs). For overlap answers the two precisions are
+// one kernel: float lanes cannot certify elongated pairs (their margins grow
+// with the element growth: 41 % of the pw85 family's lanes ended in the
+// reference path), and a float accurate solve measured slower than a double
+// one on the pairs the cheap pass leaves, on both families (1M scene pairs:
+// 11.4 against 10.8 ms; the pw85 family: 23.1 ms with its leftovers finished
+// in double, against 16.4 ms).
 template <class Arch, class In>
-void solve_overlap_single(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
-                          const ChunkSettings& settings, const Scratch& scratch,
-                          ChunkCounters& counters) {
+void solve_overlap_float_first(const PairSpan<In>& in, const OverlapSpan& out, std::size_t n,
+                               const ChunkSettings& settings, const Scratch& scratch,
+                               ChunkCounters& counters) {
   solve_overlap_in_two_passes<Arch, float, double, In>(in, out, n, settings, scratch, counters);
-}
-
-// Mixed precision: the cheap pass in float lanes (twice as many per register,
-// with float margins), the accurate solve in double.
-template <class Arch>
-void solve_overlap_mixed(const PairSpan<double>& in, const OverlapSpan& out, std::size_t n,
-                         const ChunkSettings& settings, const Scratch& scratch,
-                         ChunkCounters& counters) {
-  solve_overlap_in_two_passes<Arch, float, double, double>(in, out, n, settings, scratch, counters);
 }
 
 }  // namespace pwcontact::kernels::PWCONTACT_TARGET
