@@ -3,15 +3,15 @@
 //
 // Particles fall into classes by bounding radius R, halving from the
 // largest: class c holds R in (R_max / 2^(c+1), R_max / 2^c] (the last class
-// takes everything smaller). Each class has its own grid, with cells at least
-// as wide as 1 / span of the reach of two of its largest members,
-// cutoff * 2 R_c. A pair of classes a, b with R_b >= R_a (b <= a) is found
-// from the members of a in the grid of b: their reach cutoff (R_i + R_j) <=
-// cutoff * 2 R_b is at most span cells of b, so the (2 span + 1)^3 cells
-// around a member hold every partner. Each pair is met once: within a class
-// from its earlier place in cell order, across classes from the smaller
-// particle. A coarse distance test on wrapped positions drops most pairs
-// before anything else about them is read.
+// takes everything smaller). Each class has its own grid, with cells about
+// as wide as the reach of two of its largest members, cutoff * 2 R_c
+// (thinner along z). A pair of classes a, b with R_b >= R_a (b <= a) is
+// found from the members of a in the grid of b: their reach cutoff (R_i +
+// R_j) is at most cutoff R_i + cutoff R_b, and a member of a visits the
+// cells of b within that of it along each axis. Each pair is met once:
+// within a class from its earlier place in cell order, across classes from
+// the smaller particle. A coarse distance test on wrapped positions drops
+// most pairs before anything else about them is read.
 #pragma once
 
 #include <array>
@@ -45,23 +45,26 @@ inline double wrap_into_box(double x, double l) {
 }
 
 // What the candidate search reads of every member it compares: the centre
-// wrapped into [0, L] (periodic; as given otherwise) and cutoff * bounding
-// radius, for a coarse distance test, in one half cache line.
+// wrapped into [0, L] (periodic; as given otherwise) and the bounding
+// radius, for a coarse distance test and the exact bounding-sphere test, in
+// one half cache line.
 struct CoarseMember {
   double wrapped[3];
-  double reach;
+  double bounding;
 };
 
 // The rest of a member, read only for the pairs that pass the coarse test
-// (a few in a hundred), in two cache lines: its index, its centre (wrapped
-// into the box when periodic, the same numbers as the coarse test's), its
-// radii, and its form.
+// (a few in a hundred), in one cache line: its form, inscribed radius,
+// index, and whether it is a sphere (its radius then sqrt(q[0]), as the
+// store computes it).
 struct alignas(64) Member {
-  double position[3];
-  double bounding, inscribed, sphere;
   double q[6];
+  double inscribed;
   std::uint32_t index;  // in the particle store
+  std::uint32_t sphere;
+  double sphere_radius() const { return sphere ? std::sqrt(q[0]) : 0; }
 };
+static_assert(sizeof(Member) == 64, "a member's detail is one cache line");
 
 // One class's grid: its members sorted by cell (counting sort, stable, so
 // the order is that of the particle indices within a cell), copied in that
@@ -69,7 +72,7 @@ struct alignas(64) Member {
 // of a run of cells along z (the search streams through rows of cells
 // instead of jumping across the particle arrays).
 struct ClassGrid {
-  int span = 1;  // cells per reach: a member's partners lie within span cells along every axis
+  double largest_reach = 0;  // cutoff * the largest bounding radius of the class
   std::array<int, 3> cells = {1, 1, 1};
   std::array<double, 3> inverse_side = {0, 0, 0};  // cells per unit length
   std::vector<std::uint32_t> cell_start;           // cells + 1 offsets into the members
@@ -175,6 +178,7 @@ struct CellLists {
   // be from the exact one, as a length: it lets a pair through when its
   // distance is within this of the reach, and the exact test decides.
   double slack = 0;
+  double cutoff = 1;
   double largest_reach = 0;  // cutoff * the largest bounding radius
   // Every particle the same bounding and inscribed radius (to 1e-12): the
   // coarse test then compares every pair with one reach, read from no member.
@@ -209,7 +213,14 @@ struct CellLists {
     cell_space(w, u);
   }
   // The cell of a cell-space coordinate along axis k.
-  int cell_of(const ClassGrid& grid, int k, double u) const;
+  int cell_of(const ClassGrid& grid, int k, double u) const {
+    // Clamped before the conversion, which is undefined beyond int's range:
+    // clamping is monotone and shrinks distances, so a member within a reach
+    // of a position along the axis stays within the cells runs_within gives.
+    const int n = grid.cells[k];
+    const double c = u * grid.inverse_side[k];
+    return c >= double(n - 1) ? n - 1 : (c > 0 ? int(c) : 0);
+  }
 };
 
 // The coarse test's slack for a largest reach and the extent [low, high] of
@@ -228,47 +239,57 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
 // A candidate pair: members i and j of their grids, r = c_j - c_i by the
 // nearest image.
 struct Candidate {
+  const CoarseMember* coarse_i;
+  const CoarseMember* coarse_j;
   const Member* i;
   const Member* j;
   double r[3];
 };
 
-// The cells of `grid` within `span` cells of a position's cell along one axis,
-// as at most two runs of consecutive cells, each with the shift (-1, 0 or 1
-// box lengths) that takes a member's wrapped position to its image nearest
-// the position (periodic wrap-around). Where a periodic grid has fewer than
-// 2 span + 1 cells along the axis a cell can neighbour the position's from
-// both sides: then one run of every cell, and nearest_image is set (the
-// caller takes the minimum image itself).
+// The cells of `grid` whose cell-space coordinate along axis k lies within
+// `reach` of u (the reach with room for the rounding of u and of the cell
+// indices), as at most two runs of consecutive cells, each with the shift
+// (-1, 0 or 1 box lengths) that takes a member's wrapped position to its
+// image within the reach (periodic wrap-around). Where the reach spans the
+// whole periodic axis a cell can be within it from both sides: then one run
+// of every cell, and nearest_image is set (the caller takes the minimum
+// image itself). Cell indices are monotone in u (cell_of), so every member
+// within the reach along the axis is in these cells.
 struct CellRuns {
   int count = 0;
   int first[2], last[2], shift[2];
   bool nearest_image = false;
 };
 
-inline CellRuns neighbour_runs(const CellLists& lists, const ClassGrid& grid, int k, double u,
-                               int span) {
+inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k, double u,
+                            double reach) {
   CellRuns runs;
   const int n = grid.cells[k];
-  const int centre = lists.cell_of(grid, k, u);
   auto add = [&](int first, int last, int shift) {
     runs.first[runs.count] = first;
     runs.last[runs.count] = last;
     runs.shift[runs.count++] = shift;
   };
   if (!lists.geometry.periodic[k]) {
-    add(std::max(0, centre - span), std::min(n - 1, centre + span), 0);
-  } else if (n < 2 * span + 1) {
+    add(lists.cell_of(grid, k, u - reach), lists.cell_of(grid, k, u + reach), 0);
+    return runs;
+  }
+  const double low = std::floor((u - reach) * grid.inverse_side[k]);
+  const double high = std::floor((u + reach) * grid.inverse_side[k]);
+  if (!(high - low + 1 < n)) {
     runs.nearest_image = true;
     add(0, n - 1, 0);
-  } else if (centre - span < 0) {
-    add(centre - span + n, n - 1, -1);
-    add(0, centre + span, 0);
-  } else if (centre + span >= n) {
-    add(centre - span, n - 1, 0);
-    add(0, centre + span - n, 1);
+    return runs;
+  }
+  const int lo = int(low), hi = int(high);
+  if (lo < 0) {
+    add(lo + n, n - 1, -1);
+    if (hi >= 0) add(0, hi, 0);
+  } else if (hi >= n) {
+    if (lo < n) add(lo, n - 1, 0);
+    add(std::max(0, lo - n), hi - n, 1);
   } else {
-    add(centre - span, centre + span, 0);
+    add(lo, hi, 0);
   }
   return runs;
 }
@@ -301,7 +322,14 @@ void search_candidates(const CellLists& lists, int threads,
   {
     const int thread = omp_get_thread_num();
     std::size_t compared = 0, passed = 0;
-    Candidate c;
+    // The candidates of the member being searched, handed on after its scan.
+    constexpr std::size_t capacity = 32;
+    Candidate held[capacity];
+    std::size_t waiting = 0;
+    auto flush = [&] {
+      for (std::size_t k = 0; k < waiting; ++k) on_candidate(thread, held[k]);
+      waiting = 0;
+    };
     for (std::size_t own = 0; own < lists.grids.size(); ++own) {
       const ClassGrid& home = lists.grids[own];
 #pragma omp for schedule(dynamic, 1024)
@@ -309,18 +337,20 @@ void search_candidates(const CellLists& lists, int threads,
         errors.run([&] {
           if (progress && thread == 0 && at % 16384 == 0)
             progress((double(done_before[own]) + double(at)) / double(total));
-          const Member& i = home.member[at];
-          c.i = &i;
+          const Member* member_i = &home.member[at];
           const CoarseMember& coarse_i = home.coarse[at];
-          const double reach_i = coarse_i.reach + lists.slack;
+          const double reach_i = lists.cutoff * coarse_i.bounding + lists.slack;
           double u_i[3];  // i's cell-space coordinates
           lists.cell_space(coarse_i.wrapped, u_i);
           // Classes of radii at least as large as i's (indices 0 .. own).
           for (std::size_t g = 0; g <= own; ++g) {
             const ClassGrid& grid = lists.grids[g];
-            const CellRuns runs[3] = {neighbour_runs(lists, grid, 0, u_i[0], grid.span),
-                                      neighbour_runs(lists, grid, 1, u_i[1], grid.span),
-                                      neighbour_runs(lists, grid, 2, u_i[2], grid.span)};
+            // Every partner of i in this grid is within i's reach and the
+            // grid's largest of i along each cell-space axis.
+            const double window = reach_i + grid.largest_reach + 3 * lists.slack;
+            const CellRuns runs[3] = {runs_within(lists, grid, 0, u_i[0], window),
+                                      runs_within(lists, grid, 1, u_i[1], window),
+                                      runs_within(lists, grid, 2, u_i[2], window)};
             const bool nearest_image =
                 runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
             // The members of one run of cells along z: contiguous.
@@ -336,24 +366,54 @@ void search_candidates(const CellLists& lists, int threads,
               double origin[3];  // i's wrapped position seen from the members' images
               for (int k = 0; k < 3; ++k) origin[k] = coarse_i.wrapped[k] - image[k];
               const CoarseMember* coarse = grid.coarse.data();
-              for (std::uint32_t m = begin; m < end; ++m) {
-                if (coarse_filter) {
-                  double d[3] = {coarse[m].wrapped[0] - origin[0], coarse[m].wrapped[1] - origin[1],
-                                 coarse[m].wrapped[2] - origin[2]};
-                  if (nearest_image) geometry.minimum_image(d);
-                  const double limit =
-                      one_reach ? reach_i + lists.largest_reach : reach_i + coarse[m].reach;
-                  if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
-                }
+              auto emit = [&](std::uint32_t m) {
                 ++passed;
-                const Member& j = grid.member[m];
-                c.j = &j;
+                if (waiting == capacity) flush();
+                Candidate& c = held[waiting++];
+                c.i = member_i;
+                c.coarse_i = &coarse_i;
+                c.j = &grid.member[m];
+                c.coarse_j = &coarse[m];
+                // The pair's detail is read once the scan of i's cells is
+                // over: fetched meanwhile (a line of a neighbouring row,
+                // seldom in the nearest cache).
+                __builtin_prefetch(c.j);
                 for (int k = 0; k < 3; ++k) {
-                  c.r[k] = j.position[k] - i.position[k];
+                  c.r[k] = coarse[m].wrapped[k] - coarse_i.wrapped[k];
                   if (image[k] != 0) c.r[k] += image[k];
                 }
                 if (nearest_image) geometry.minimum_image(c.r);
-                on_candidate(thread, c);
+              };
+              if (!coarse_filter || nearest_image) {
+                for (std::uint32_t m = begin; m < end; ++m) {
+                  if (coarse_filter) {
+                    double d[3] = {coarse[m].wrapped[0] - origin[0],
+                                   coarse[m].wrapped[1] - origin[1],
+                                   coarse[m].wrapped[2] - origin[2]};
+                    geometry.minimum_image(d);
+                    const double limit = reach_i + lists.cutoff * coarse[m].bounding;
+                    if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= limit * limit) continue;
+                  }
+                  emit(m);
+                }
+                return;
+              }
+              // The coarse test without a branch per member (a few in ten
+              // pass, unpredictably): the places of those that pass are
+              // written in turn, then emitted.
+              for (std::uint32_t first = begin; first < end; first += 64) {
+                const std::uint32_t last = std::min<std::uint32_t>(end, first + 64);
+                std::uint32_t pass[64], passing = 0;
+                for (std::uint32_t m = first; m < last; ++m) {
+                  const double dx = coarse[m].wrapped[0] - origin[0],
+                               dy = coarse[m].wrapped[1] - origin[1],
+                               dz = coarse[m].wrapped[2] - origin[2];
+                  const double limit = reach_i + (one_reach ? lists.largest_reach
+                                                            : lists.cutoff * coarse[m].bounding);
+                  pass[passing] = m;
+                  passing += std::uint32_t(dx * dx + dy * dy + dz * dz < limit * limit);
+                }
+                for (std::uint32_t k = 0; k < passing; ++k) emit(pass[k]);
               }
             };
             const std::size_t ny = std::size_t(grid.cells[1]), nz = std::size_t(grid.cells[2]);
@@ -378,6 +438,7 @@ void search_candidates(const CellLists& lists, int threads,
                     }
                   }
           }
+          flush();
         });
     }
     errors.run([&] { done(thread, compared, passed); });

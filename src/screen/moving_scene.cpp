@@ -199,7 +199,7 @@ struct MovingScene::Impl {
     side = 2 * cutoff * radius + 4 * lists.slack;
     for (int k = 0; k < 3; ++k) lists.origin[k] = geometry.periodic[k] ? 0 : low[k] - side;
     screen::ClassGrid g;
-    g.span = 1;
+    g.largest_reach = cutoff * radius;
     double cell_side = side;
     const double limit = std::max(64.0, 2.0 * double(n));
     for (;;) {
@@ -291,43 +291,6 @@ struct MovingScene::Impl {
   // ---------------------------------------------------------------------
   // Queries
 
-  // The cells within `reach` of cell-space coordinate u along axis k, as
-  // at most two runs of consecutive cells with their image shifts (as
-  // screen::neighbour_runs gives them); every cell once, with nearest_image
-  // set, when the reach spans the whole periodic axis.
-  screen::CellRuns runs_within(int k, double u, double reach) const {
-    screen::CellRuns runs;
-    const screen::ClassGrid& g = grid();
-    const int n = g.cells[k];
-    auto add = [&](int first, int last, int shift) {
-      runs.first[runs.count] = first;
-      runs.last[runs.count] = last;
-      runs.shift[runs.count++] = shift;
-    };
-    if (!lists.geometry.periodic[k]) {
-      add(lists.cell_of(g, k, u - reach), lists.cell_of(g, k, u + reach), 0);
-      return runs;
-    }
-    const double low = std::floor((u - reach) * g.inverse_side[k]);
-    const double high = std::floor((u + reach) * g.inverse_side[k]);
-    if (!(high - low + 1 < n)) {
-      runs.nearest_image = true;
-      add(0, n - 1, 0);
-      return runs;
-    }
-    const int lo = int(low), hi = int(high);
-    if (lo < 0) {
-      add(lo + n, n - 1, -1);
-      if (hi >= 0) add(0, hi, 0);
-    } else if (hi >= n) {
-      if (lo < n) add(lo, n - 1, 0);
-      add(std::max(0, lo - n), hi - n, 1);
-    } else {
-      add(lo, hi, 0);
-    }
-    return runs;
-  }
-
   // Every stored particle but `exclude` whose bounding sphere meets the
   // trial's at this cutoff, in the scene's search order (cells by their
   // runs, slots in order): visit(index, r, rr) with r = c_index - c_trial
@@ -344,8 +307,9 @@ struct MovingScene::Impl {
     // or three along each axis (not always the 3 x 3 x 3 about its cell).
     const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
     const screen::ClassGrid& g = grid();
-    const screen::CellRuns runs[3] = {runs_within(0, u[0], reach), runs_within(1, u[1], reach),
-                                      runs_within(2, u[2], reach)};
+    const screen::CellRuns runs[3] = {screen::runs_within(lists, g, 0, u[0], reach),
+                                      screen::runs_within(lists, g, 1, u[1], reach),
+                                      screen::runs_within(lists, g, 2, u[2], reach)};
     const bool nearest_image =
         runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
     // Copies, so that the scan's loop keeps them in registers (the visit

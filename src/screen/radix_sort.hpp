@@ -22,23 +22,34 @@ void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key) {
   constexpr std::size_t buckets = std::size_t(1) << digit_bits;
   const std::size_t n = v.size();
   if (n < 2) return;
-  std::vector<T> scratch(n);
-  std::vector<std::size_t> start(buckets);
+  // The digits' shifts: low half then high half, each from its lowest bit.
+  int shifts[8], passes = 0;
   for (int half = 0; half < 64; half += 32)
-    for (int shift = half; shift < half + bits_per_half; shift += digit_bits) {
-      auto digit = [&](const T& x) { return std::size_t(key(x) >> shift) & (buckets - 1); };
-      std::fill(start.begin(), start.end(), 0);
-      for (const T& x : v) ++start[digit(x)];
-      if (start[digit(v[0])] == n) continue;  // one digit throughout: already in order
-      std::size_t at = 0;
-      for (std::size_t& s : start) {
-        const std::size_t count = s;
-        s = at;
-        at += count;
-      }
-      for (const T& x : v) scratch[start[digit(x)]++] = x;
-      v.swap(scratch);
+    for (int shift = half; shift < half + bits_per_half; shift += digit_bits)
+      shifts[passes++] = shift;
+  // Every pass's counts in one read of the keys.
+  std::vector<std::size_t> start(std::size_t(passes) * buckets, 0);
+  for (const T& x : v) {
+    const std::uint64_t k = key(x);
+    for (int p = 0; p < passes; ++p)
+      ++start[std::size_t(p) * buckets + ((k >> shifts[p]) & (buckets - 1))];
+  }
+  std::vector<T> scratch;
+  for (int p = 0; p < passes; ++p) {
+    const int shift = shifts[p];
+    std::size_t* count = start.data() + std::size_t(p) * buckets;
+    auto digit = [&](const T& x) { return std::size_t(key(x) >> shift) & (buckets - 1); };
+    if (count[digit(v[0])] == n) continue;  // one digit throughout: already in order
+    std::size_t at = 0;
+    for (std::size_t b = 0; b < buckets; ++b) {
+      const std::size_t here = count[b];
+      count[b] = at;
+      at += here;
     }
+    if (scratch.empty()) scratch.resize(n);
+    for (const T& x : v) scratch[count[digit(x)]++] = x;
+    v.swap(scratch);
+  }
 }
 
 // The bits a particle index below `particles` needs (0 for one particle).
