@@ -968,7 +968,8 @@ TEST(Screen, ThePairsAndTheirOrderDoNotDependOnTheThreadCount) {
 
 // Large enough that the cell lists are built by several chunks in parallel
 // (one per thread, from 16,384 particles a chunk), with several size
-// classes: the pairs found and their mu^2 must be those of one thread.
+// classes: the pairs found and their mu^2 must be those of one thread
+// (with and without mu^2).
 TEST(Screen, CellListsBuiltInParallelGiveTheOneThreadAnswer) {
   const SceneSpec spec{50000, 0.3, 3, 0.05, 0.6, 26.0, true, 9};
   const ParticleStore s = make_scene(spec);
@@ -977,12 +978,19 @@ TEST(Screen, CellListsBuiltInParallelGiveTheOneThreadAnswer) {
   const pwcontact::ScreenReport report = screen(s, box, 1.1, one, true, 1);
   EXPECT_GT(report.size_classes, 2u);
   EXPECT_GT(one.size(), 10000u);
-  for (int threads : {2, 3}) {
+  // (7 threads: more lists of pairs than the last merge takes at once.)
+  for (int threads : {2, 3, 7}) {
     ScreenedPairs many;
     screen(s, box, 1.1, many, true, threads);
     EXPECT_EQ(one.i, many.i) << threads << " threads";
     EXPECT_EQ(one.j, many.j) << threads << " threads";
     EXPECT_EQ(one.mu2, many.mu2) << threads << " threads";
+    ScreenedPairs one_alone, many_alone;  // without mu^2 (the overlap answers)
+    screen(s, box, 1.1, one_alone, false, 1);
+    screen(s, box, 1.1, many_alone, false, threads);
+    EXPECT_GT(one_alone.size(), 10000u);
+    EXPECT_EQ(one_alone.i, many_alone.i) << threads << " threads, without mu2";
+    EXPECT_EQ(one_alone.j, many_alone.j) << threads << " threads, without mu2";
   }
 }
 
