@@ -620,7 +620,8 @@ TEST(Screen, TriclinicBoxesMatchABruteForceOverEveryImage) {
 // pair in by 1e-12 found, every pair out by 1e-12 not, and the whole set
 // that of an oracle in long double over every image |n_k| <= 2 (no band:
 // pairs it finds within 1e-13 of the cutoff, none here, would be left out).
-// Periodic, triclinic and open boxes; cutoffs 1 and 1.3. (A window of twice
+// Periodic, triclinic and open boxes, two of them barely twice the largest
+// reach along z; cutoffs 1 and 1.3. (A window of twice
 // the member's own reach, without the grid's largest, misses 73 to 90 of
 // the 350 planted inside.)
 TEST(Screen, SpheresJustInsideTheirReachAreFoundWhereverTheCellsAreCut) {
@@ -633,6 +634,10 @@ TEST(Screen, SpheresJustInsideTheirReachAreFoundWhereverTheCellsAreCut) {
       {"periodic", Box::periodic_box(11, 10, 9.5), 1},
       {"periodic, cutoff 1.3", Box::periodic_box(11, 10, 9.5), 1.3},
       {"triclinic", Box::triclinic(11, 10, 9.5, 0.4, -0.3, 0.2), 1},
+      // Barely twice the largest reach along z: the windows of the largest
+      // class span the whole axis there (the minimum image).
+      {"periodic, thin along z", Box::periodic_box(11, 10, 3.4), 1},
+      {"triclinic, thin along z", Box::triclinic(11, 10, 3.4, 0.4, -0.3, 0.2), 1},
       {"open", Box::open(), 1.3},
   };
   std::uint64_t seed = 301;
@@ -698,8 +703,19 @@ TEST(Screen, SpheresJustInsideTheirReachAreFoundWhereverTheCellsAreCut) {
       const long double sum = static_cast<long double>(a[i]) + a[j];
       return best / (sum * sum);
     };
-    // (Periodic: the oracle's images reach every pair only when the centres
-    // are within a box of the origin; they are drawn in [0, 10] + 1.)
+    // Periodic: every centre taken into the box first (its fractional
+    // coordinates less their floor), so that the images |n_k| <= 2 hold the
+    // nearest of every pair.
+    if (box.periodic)
+      for (auto& c : x) {
+        long double f[3];
+        f[2] = c[2] / lattice[2][2];
+        f[1] = (c[1] - f[2] * lattice[2][1]) / lattice[1][1];
+        f[0] = (c[0] - f[1] * lattice[1][0] - f[2] * lattice[2][0]) / lattice[0][0];
+        for (long double& v : f) v -= std::floor(v);
+        for (int d = 0; d < 3; ++d)
+          c[d] = f[0] * lattice[0][d] + f[1] * lattice[1][d] + f[2] * lattice[2][d];
+      }
     std::set<std::pair<std::uint32_t, std::uint32_t>> expected, unclear;
     const std::size_t n = s.size();
     for (std::size_t i = 0; i < n; ++i)
@@ -932,16 +948,27 @@ TEST(Screen, ACandidateListOfOnesOwnGivesTheSamePairsAsTheCellLists) {
   for (bool with_mu2 : {false, true}) {
     ScreenOptions options;
     options.with_mu2 = with_mu2;
-    ScreenedPairs from_cells, from_list;
+    ScreenedPairs from_cells, one_thread;
     pwcontact::screen_pairs(s, box, options, from_cells);
-    const ScreenReport report = pwcontact::screen_candidates(s, box, first.data(), second.data(),
-                                                             first.size(), options, from_list);
-    EXPECT_EQ(report.candidate_pairs, first.size());
-    EXPECT_EQ(from_list.i, from_cells.i) << "with_mu2 " << with_mu2;
-    EXPECT_EQ(from_list.j, from_cells.j) << "with_mu2 " << with_mu2;
-    ASSERT_EQ(from_list.mu2.size(), from_cells.mu2.size());
-    for (std::size_t k = 0; k < from_list.mu2.size(); ++k)
-      EXPECT_NEAR(from_list.mu2[k], from_cells.mu2[k], 1e-13 * from_cells.mu2[k]) << k;
+    // (7 threads: seven lists of pairs with repeats, merged in rounds.)
+    for (int threads : {1, 2, 7}) {
+      options.threads = threads;
+      ScreenedPairs from_list;
+      const ScreenReport report = pwcontact::screen_candidates(s, box, first.data(), second.data(),
+                                                               first.size(), options, from_list);
+      const std::string what =
+          "with_mu2 " + std::to_string(with_mu2) + ", " + std::to_string(threads) + " threads";
+      EXPECT_EQ(report.candidate_pairs, first.size()) << what;
+      EXPECT_EQ(from_list.i, from_cells.i) << what;
+      EXPECT_EQ(from_list.j, from_cells.j) << what;
+      ASSERT_EQ(from_list.mu2.size(), from_cells.mu2.size()) << what;
+      for (std::size_t k = 0; k < from_list.mu2.size(); ++k)
+        EXPECT_NEAR(from_list.mu2[k], from_cells.mu2[k], 1e-13 * from_cells.mu2[k]) << k;
+      if (threads == 1)
+        one_thread = from_list;
+      else
+        EXPECT_EQ(from_list.mu2, one_thread.mu2) << what;
+    }
     EXPECT_GT(from_cells.size(), 100u);
   }
   const std::uint32_t bad_first[] = {0, 5}, bad_second[] = {1, 5};

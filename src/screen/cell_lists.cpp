@@ -228,7 +228,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
       }
     }
     grid.cell_start[cells] = at;
-    // (In huge pages: 160 bytes a member, filled in parallel right after.)
+    // (In huge pages: 96 bytes a member, filled in parallel right after.)
     reserve_in_huge_pages(grid.coarse, at);
     reserve_in_huge_pages(grid.member, at);
     grid.coarse.resize(at);
@@ -243,8 +243,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   }
   std::vector<std::vector<std::uint32_t>>().swap(place);
   // The copies in cell order, read in particle order (streaming reads,
-  // scattered writes of three cache lines per particle: measured faster than
-  // gathering them in cell order).
+  // scattered writes of a half and a whole cache line per particle: measured
+  // faster than gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     ClassGrid& grid = lists.grids[size_class[i]];

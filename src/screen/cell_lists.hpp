@@ -89,8 +89,9 @@ struct ClassGrid {
 // when the box is orthorhombic), along an open axis the coordinate from the
 // lowest centre. Two centres a distance d apart differ by at most d in
 // every cell-space coordinate (|delta s_k| w_k is their distance across
-// the planes of the other two lattice vectors), so that cells as wide as the
-// reach hold every partner within one cell, whatever the tilts.
+// the planes of the other two lattice vectors), so that the cells within a
+// reach of a member along each cell-space axis hold every partner within
+// that reach, whatever the tilts.
 struct BoxGeometry {
   std::array<bool, 3> periodic = {false, false, false};
   bool triclinic = false;            // periodic with a tilt
@@ -105,8 +106,8 @@ struct BoxGeometry {
   // h^-1 x (upper triangular: back substitution), periodic axes only. By
   // the reciprocals of the diagonal rather than divisions (three dependent
   // divisions per particle and per image): each s[k] within a few eps of
-  // its exact value either way, which the cell sides and the coarse test's
-  // slack allow for.
+  // its exact value either way, which the slack of the cells' windows and
+  // of the coarse test allows for.
   void fractional(const double x[3], double s[3]) const {
     s[2] = periodic[2] ? x[2] * inverse_diagonal[2] : 0;
     s[1] = (x[1] - h[1][2] * s[2]) * inverse_diagonal[1];
@@ -298,8 +299,11 @@ inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k
 // the places in cell order; across classes from the smaller particle). With
 // `coarse_filter`, a pair only when the distance of the wrapped positions is
 // less than its reach cutoff (R_i + R_j) plus the slack; without, every pair
-// of neighbouring cells. Calls on_candidate(thread, candidate) in the thread
-// that finds it (r12 exact, by the nearest image), and done(thread,
+// in the cells within the member's window. Calls on_candidate(thread,
+// candidate) in the thread that finds it, after the scan of the member's
+// cells, up to 32 at a time (r12 exact, by the nearest image: the same bits
+// whether the image comes from the run of cells or from the minimum image
+// where a window spans a whole axis), and done(thread,
 // compared, passed) when the thread has no more: the pairs it compared and
 // those it passed on. Each class's members are taken in cell order (the
 // neighbour cells of consecutive members are the same, and in cache), shared
@@ -378,9 +382,14 @@ void search_candidates(const CellLists& lists, int threads,
                 // over: fetched meanwhile (a line of a neighbouring row,
                 // seldom in the nearest cache).
                 __builtin_prefetch(c.j);
+                // (Where a window spans a whole axis the minimum image adds
+                // the whole shift, which is the run's along the other axes
+                // for a pair within reach: the same sum either way, so the
+                // same bits whatever the grid, as the screen over MPI ranks,
+                // whose grids differ, requires.)
                 for (int k = 0; k < 3; ++k) {
                   c.r[k] = coarse[m].wrapped[k] - coarse_i.wrapped[k];
-                  if (image[k] != 0) c.r[k] += image[k];
+                  if (!nearest_image && image[k] != 0) c.r[k] += image[k];
                 }
                 if (nearest_image) geometry.minimum_image(c.r);
               };

@@ -193,6 +193,7 @@ struct MovingScene::Impl {
       high[k] = hi;
     }
     lists.slack = screen::coarse_slack(geometry, 2 * cutoff * radius, low, high);
+    lists.cutoff = cutoff;
     lists.largest_reach = cutoff * radius;
     // Open axes: the region covered reaches a cell beyond the particles on
     // each side, for the ones that move a little.

@@ -227,12 +227,23 @@ void sorted_union(std::vector<std::vector<T>>& lists, int threads, std::size_t p
   errors.rethrow_if_failed();
   lists.erase(std::remove_if(lists.begin(), lists.end(), [](const auto& l) { return l.empty(); }),
               lists.end());
+  // Neighbours merged in rounds (list 2k with 2k + 1: each element copied
+  // once a round, and equal keys kept in the lists' order).
   while (lists.size() > 4) {
-    std::vector<T> merged(lists[lists.size() - 2].size() + lists.back().size());
-    std::merge(lists[lists.size() - 2].begin(), lists[lists.size() - 2].end(), lists.back().begin(),
-               lists.back().end(), merged.begin(), less);
-    lists.pop_back();
-    lists.back().swap(merged);
+    std::vector<std::vector<T>> fewer((lists.size() + 1) / 2);
+    for (std::size_t k = 0; k < fewer.size(); ++k) {
+      if (2 * k + 1 == lists.size()) {
+        fewer[k].swap(lists[2 * k]);
+        continue;
+      }
+      const std::vector<T>& a = lists[2 * k];
+      const std::vector<T>& b = lists[2 * k + 1];
+      fewer[k].resize(a.size() + b.size());
+      std::merge(a.begin(), a.end(), b.begin(), b.end(), fewer[k].begin(), less);
+      std::vector<T>().swap(lists[2 * k]);
+      std::vector<T>().swap(lists[2 * k + 1]);
+    }
+    lists.swap(fewer);
   }
   // The heads of the remaining lists: the least key next, a key equal to
   // the last emitted skipped.
@@ -325,6 +336,11 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
     for (std::size_t t = 0; t < per_thread.size(); ++t) lists[t].swap(per_thread[t].found);
     sorted_union(
         lists, threads, particles, [](std::uint64_t x) { return x; }, emit_pair);
+  }
+  if (out.size() < upper / 2) {  // (repeats in a candidate list of one's own)
+    out.i.shrink_to_fit();
+    out.j.shrink_to_fit();
+    out.mu2.shrink_to_fit();
   }
   report.found = out.size();
   report.seconds_output = omp_get_wtime() - t4;
