@@ -198,6 +198,26 @@ std::pair<double, double> squared_extremes(const std::array<double, 3>& semi_axe
   return {smallest * smallest, largest * largest};
 }
 
+// 64 eps |Q| rounds the radii outwards (bounding) and inwards (inscribed)
+// beyond the few eps |Q| by which the eigenvalues may err, so that both
+// prefilters stay on the safe side; Q is definite only beyond it.
+double eigenvalue_slack(double largest) {
+  return 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
+}
+
+// The bounding and inscribed radii of extreme eigenvalues smallest >
+// slack and largest, rounded outwards and inwards.
+std::pair<double, double> radii_of_extremes(double smallest, double largest, double slack) {
+  const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
+  return {std::sqrt(largest + slack) * up, std::sqrt(smallest - slack) / up};
+}
+
+// A sphere's radius: Q exactly a^2 I (as stored for equal semi-axes), else 0.
+double sphere_radius_of(const QuadraticForm& q) {
+  const bool sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
+  return sphere ? std::sqrt(q[0]) : 0;
+}
+
 }  // namespace
 
 ParticleStore::Particle ParticleStore::particle_axes(const std::array<double, 3>& centre,
@@ -214,7 +234,7 @@ void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
                              const std::array<double, 3>& semi_axes,
                              const std::array<double, 4>& quaternion) {
   // The common case straight into the arrays: the numbers particle_axes()
-  // and radii_of() give, by the same operations (the same bits), without a
+  // and radii_of() give, by the same functions (the same bits), without a
   // Particle in between and with the radii's square roots started before
   // the rotation's (the two chains overlap). A million particles with one
   // thread: 49-50 ms through a Particle, 38-40 ms this way. Anything
@@ -228,21 +248,18 @@ void ParticleStore::set_axes(std::size_t i, const std::array<double, 3>& centre,
     valid = valid && std::isfinite(centre[k]) && semi_axes[k] > 0 && std::isfinite(semi_axes[k]);
   if (valid) {
     const auto [smallest, largest] = squared_extremes(semi_axes);
-    const double slack = 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
+    const double slack = eigenvalue_slack(largest);
     if (smallest > slack) {
-      const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
-      const double bounding = std::sqrt(largest + slack) * up;
-      const double inscribed = std::sqrt(smallest - slack) / up;
+      const auto [bounding, inscribed] = radii_of_extremes(smallest, largest, slack);
       // (A finite, non-zero quaternion: the rotation throws nothing.)
       const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
       const QuadraticForm q =
           equal ? sphere(semi_axes[0]) : quadratic_form_from_quaternion(semi_axes, quaternion);
-      const bool is_sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
       for (int k = 0; k < 3; ++k) centre_[k][i] = centre[k];
       for (int k = 0; k < 6; ++k) q_[k][i] = q[k];
       bounding_[i] = bounding;
       inscribed_[i] = inscribed;
-      sphere_[i] = is_sphere ? std::sqrt(q[0]) : 0;
+      sphere_[i] = sphere_radius_of(q);
       type_id_[i] = untyped;
       return;
     }
@@ -374,21 +391,14 @@ void ParticleStore::add_typed(const std::array<double, 3>& centre, std::uint32_t
   }
 }
 
-// (set_axes() computes the same numbers in its common case: a change here
-// is a change there.)
 ParticleStore::Radii ParticleStore::radii_of(const std::string& who, const std::array<double, 6>& q,
                                              double smallest, double largest) {
-  // 64 eps |Q| rounds the radii outwards (bounding) and inwards (inscribed)
-  // beyond the few eps |Q| by which the eigenvalues may err, so that both
-  // prefilters stay on the safe side.
-  const double slack = 64 * std::numeric_limits<double>::epsilon() * std::abs(largest);
+  const double slack = eigenvalue_slack(largest);
   if (!(smallest > slack))
     throw std::invalid_argument(who + ": Q is not positive definite (smallest eigenvalue " +
                                 std::to_string(smallest) + ")");
-  const double up = 1 + 4 * std::numeric_limits<double>::epsilon();
-  const bool sphere = q[1] == 0 && q[2] == 0 && q[4] == 0 && q[0] == q[3] && q[0] == q[5];
-  return {std::sqrt(largest + slack) * up, std::sqrt(smallest - slack) / up,
-          sphere ? std::sqrt(q[0]) : 0};
+  const auto [bounding, inscribed] = radii_of_extremes(smallest, largest, slack);
+  return {bounding, inscribed, sphere_radius_of(q)};
 }
 
 ParticleStore::Particle ParticleStore::untyped_particle(const std::string& who,
