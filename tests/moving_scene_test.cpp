@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels/kernel_api.hpp"
 #include "pwcontact/moving_scene.hpp"
 #include "pwcontact/pwcontact.hpp"
 
@@ -250,6 +251,112 @@ TEST(MovingScene, RandomSequencesInATriclinicBoxMatchTheBruteForceAndTheScreen) 
 
 TEST(MovingScene, RandomSequencesInOpenBoundariesMatchTheBruteForceAndTheScreen) {
   for (std::uint64_t seed : {5, 6}) run_sequence({Box::open(), 5, 150, 1500, seed});
+}
+
+// The coarse test of every instruction set keeps every member that the
+// scene's exact test (below, in the baseline arithmetic the scene makes it
+// in) keeps, sets no bit at or beyond n, and lets through nothing farther
+// than 1e-9 beyond the limit. Members are planted a few ulps either side of
+// the limit, where FMA lanes and the baseline round differently, at scales
+// from 1e-160 (squares in the subnormal range) to 1e150.
+TEST(MovingScene, TheCoarseKernelOfEveryIsaKeepsWhatTheExactTestKeeps) {
+  std::mt19937_64 engine(17);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (pwcontact::Isa isa : pwcontact::supported_isas()) {
+    const pwcontact::kernels::BoundingKernel meet =
+        pwcontact::kernels::kernels_for(isa).bounding_spheres_meet;
+    std::size_t kept = 0, near_limit = 0;
+    for (int round = 0; round < 3000; ++round) {
+      const double scale = std::pow(10.0, -160 + 310 * unit(engine));
+      const std::uint32_t n = std::uint32_t(engine() % 33);
+      // Arrays padded to whole registers, with junk in the padding.
+      std::vector<double> x(40), y(40), z(40), bounding(40);
+      const double origin[3] = {scale * (unit(engine) - 0.5), scale * (unit(engine) - 0.5),
+                                scale * (unit(engine) - 0.5)};
+      const double reach = scale * unit(engine), cut = 0.5 + unit(engine);
+      for (std::size_t k = 0; k < 40; ++k) {
+        bounding[k] = scale * unit(engine);
+        double d[3] = {unit(engine) - 0.5, unit(engine) - 0.5, unit(engine) - 0.5};
+        const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        // Half of them on the limit, moved by a few ulps; the rest anywhere.
+        const double limit = reach + cut * bounding[k];
+        const double at = k % 2 == 0 ? limit * (1 + double(int(engine() % 9) - 4) * 0x1p-52)
+                                     : 3 * limit * unit(engine);
+        x[k] = origin[0] + at * d[0] / norm;
+        y[k] = origin[1] + at * d[1] / norm;
+        z[k] = origin[2] + at * d[2] / norm;
+      }
+      const std::uint32_t bits =
+          meet({x.data(), y.data(), z.data(), bounding.data()}, n, origin, reach, cut);
+      for (std::uint32_t k = 0; k < 32; ++k) {
+        const bool set = (bits >> k) & 1u;
+        if (k >= n) {
+          EXPECT_FALSE(set) << pwcontact::isa_name(isa) << ": bit " << k << " of " << n;
+          continue;
+        }
+        const double rx = x[k] - origin[0], ry = y[k] - origin[1], rz = z[k] - origin[2];
+        const double rr = rx * rx + ry * ry + rz * rz;
+        const double limit = reach + cut * bounding[k];
+        const bool exact = rr < limit * limit;
+        kept += exact;
+        near_limit += std::abs(rr - limit * limit) <= 1e-14 * limit * limit;
+        if (exact) {
+          EXPECT_TRUE(set) << pwcontact::isa_name(isa) << ": member " << k << " of " << n
+                           << " dropped, scale " << scale;
+        }
+        if (rr > limit * limit * (1 + 1e-9) + 1e-299) {
+          EXPECT_FALSE(set) << pwcontact::isa_name(isa) << ": member " << k << " far beyond";
+        }
+      }
+    }
+    // The test is not vacuous: members kept, and many within 1e-14 of the limit.
+    EXPECT_GT(kept, 10000u) << pwcontact::isa_name(isa);
+    EXPECT_GT(near_limit, 10000u) << pwcontact::isa_name(isa);
+  }
+}
+
+// Spheres planted 1e-12 inside and outside contact with a trial, in every
+// direction, queried on every instruction set: the coarse kernels drop no
+// pair that overlaps.
+TEST(MovingScene, SpheresPlantedJustInsideContactAreFoundOnEveryIsa) {
+  std::mt19937_64 engine(19);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (pwcontact::Isa isa : pwcontact::supported_isas()) {
+    for (const Box& box :
+         {Box::periodic_box(20, 20, 20), Box::triclinic(20, 21, 19, 0.3, -0.2, 0.1), Box::open()}) {
+      ParticleStore s;
+      std::vector<double> radius;
+      for (int k = 0; k < 400; ++k) {
+        const double a = 0.2 + 0.8 * unit(engine);
+        s.add_particle(
+            ParticleStore::particle({20 * unit(engine), 20 * unit(engine), 20 * unit(engine)},
+                                    {a * a, 0, 0, a * a, 0, a * a}));
+        radius.push_back(a);
+      }
+      pwcontact::MovingSceneOptions options;
+      options.batch.isa = isa;
+      const MovingScene scene(s, box, options);
+      for (int k = 0; k < 400; ++k) {
+        const std::size_t j = std::size_t(engine() % s.size());
+        const double a = 0.2 + 0.8 * unit(engine);
+        double d[3] = {unit(engine) - 0.5, unit(engine) - 0.5, unit(engine) - 0.5};
+        const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        const bool inside = k % 2 == 0;
+        const double at = (a + radius[j]) * (inside ? 1 - 1e-12 : 1 + 1e-12);
+        const Particle t = ParticleStore::particle(
+            {s.centre(0)[j] + at * d[0] / norm, s.centre(1)[j] + at * d[1] / norm,
+             s.centre(2)[j] + at * d[2] / norm},
+            {a * a, 0, 0, a * a, 0, a * a});
+        const std::vector<pwcontact::Neighbor> found = scene.neighbors(t, 1.0);
+        bool has_j = false;
+        for (const pwcontact::Neighbor& f : found) has_j = has_j || f.index == j;
+        EXPECT_EQ(has_j, inside) << pwcontact::isa_name(isa) << ", sphere " << k;
+        if (inside) {
+          EXPECT_NE(scene.overlaps(t), MovingScene::none) << pwcontact::isa_name(isa);
+        }
+      }
+    }
+  }
 }
 
 TEST(MovingScene, BatchedQueriesAreTheSingleQueriesWhateverTheThreadCount) {

@@ -32,6 +32,20 @@ void solve_overlap(const PairSpan<In>&, const OverlapSpan& out, std::size_t n, c
   leave_every_lane(out.status, n);
 }
 
+// The coarse test member by member, in the caller's own arithmetic (so
+// exactly the test the caller makes after it).
+std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t n,
+                                    const double origin[3], double reach, double scale) {
+  std::uint32_t meet = 0;
+  for (std::uint32_t k = 0; k < n; ++k) {
+    const double x = members.x[k] - origin[0], y = members.y[k] - origin[1],
+                 z = members.z[k] - origin[2];
+    const double limit = reach + scale * members.bounding[k];
+    meet |= std::uint32_t(x * x + y * y + z * z < limit * limit) << k;
+  }
+  return meet;
+}
+
 }  // namespace
 
 const KernelTable kernel_table_fallback = {
@@ -46,6 +60,7 @@ const KernelTable kernel_table_fallback = {
     &solve_overlap<double>,
     &solve_overlap<double>,
     &solve_overlap<float>,
+    &bounding_spheres_meet,
 };
 
 }  // namespace pwcontact::kernels

@@ -96,6 +96,23 @@ using OverlapKernel = void (*)(const PairSpan<In>& in, const OverlapSpan& out, s
                                const ChunkSettings& settings, const Scratch& scratch,
                                ChunkCounters& counters);
 
+// A cell's members as the coarse test of a moving scene reads them: centres
+// and bounding radii, each in its own array, padded to a multiple of
+// coarse_padding members (the kernels read whole registers).
+struct CoarseMembers {
+  const double* x;
+  const double* y;
+  const double* z;
+  const double* bounding;
+};
+inline constexpr std::uint32_t coarse_padding = 8;
+
+// Bit k set for every member k < n (n <= 32) whose bounding sphere may meet
+// the trial's: |c_k - origin|^2 < (reach + scale R_k)^2, on the safe side
+// (a superset: bounding_kernel.hpp says by how much).
+using BoundingKernel = std::uint32_t (*)(const CoarseMembers& members, std::uint32_t n,
+                                         const double origin[3], double reach, double scale);
+
 // What one instruction set offers. Every kernel handles any n up to the
 // scratch capacity (tails included, without reading or writing past n) and
 // writes status ok or needs_fallback.
@@ -111,6 +128,7 @@ struct KernelTable {
   OverlapKernel<double> overlap_mixed;  // float certificates, double for the rest
   OverlapKernel<double> overlap_single;
   OverlapKernel<float> overlap_float;
+  BoundingKernel bounding_spheres_meet;
 };
 
 // The tables, one per target (kernels/contact_<target>.cpp); chosen only

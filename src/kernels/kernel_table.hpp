@@ -3,6 +3,7 @@
 // translation unit (contact_sse2.cpp, ...), after it defines PWCONTACT_TARGET.
 #pragma once
 
+#include "kernels/bounding_kernel.hpp"
 #include "kernels/contact_kernel.hpp"
 #include "kernels/overlap_kernel.hpp"
 
@@ -20,5 +21,6 @@
       &PWCONTACT_TARGET::solve_overlap_float_first<arch, double>,  \
       &PWCONTACT_TARGET::solve_overlap_float_first<arch, double>,  \
       &PWCONTACT_TARGET::solve_overlap_float_first<arch, float>,   \
+      &PWCONTACT_TARGET::bounding_spheres_meet<arch>,              \
   };                                                               \
   }

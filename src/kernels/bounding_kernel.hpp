@@ -1,0 +1,55 @@
+// The coarse test of a moving scene's query (moving_scene.cpp): which of a
+// cell's members have bounding spheres that may meet a trial's, several
+// members per register. Compiled once per target (target.hpp).
+//
+// The answer is a superset of the exact test |r|^2 < (reach + scale R_j)^2
+// that the caller then makes member by member in its own (baseline)
+// arithmetic: the lanes may round differently (FMA), so the limit is widened
+// by a relative 1e-12 (the two roundings differ by a few eps relatively, all
+// terms being positive) and by an absolute 1e-300 (where the squares
+// underflow, the relative bound does not hold). A member the exact test
+// keeps is never dropped here; the few let through in excess are dropped
+// there.
+#pragma once
+
+#include "kernels/kernel_api.hpp"
+#include "kernels/simd_math.hpp"
+
+namespace pwcontact::kernels::PWCONTACT_TARGET {
+
+// The lanes of a comparison as the low bits of an integer.
+template <class Arch>
+PWCONTACT_INLINE std::uint32_t lane_bits(const xsimd::batch_bool<double, Arch>& b) {
+  constexpr std::size_t lanes = xsimd::batch<double, Arch>::size;
+  if constexpr (lanes == 8) {
+    return std::uint32_t(__mmask8(b));
+  } else if constexpr (lanes == 4) {
+    return std::uint32_t(_mm256_movemask_pd(__m256d(b)));
+  } else {
+    static_assert(lanes == 2, "double lanes: 2, 4 or 8");
+    return std::uint32_t(_mm_movemask_pd(__m128d(b)));
+  }
+}
+
+template <class Arch>
+std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t n,
+                                    const double origin[3], double reach, double scale) {
+  using B = xsimd::batch<double, Arch>;
+  constexpr std::uint32_t lanes = B::size;
+  const B ox(origin[0]), oy(origin[1]), oz(origin[2]), r(reach), s(scale);
+  const B widen(1 + 1e-12), floor(1e-300);
+  std::uint32_t meet = 0;
+  // Whole registers: the blocks are padded to a multiple of 8 members
+  // (coarse_padding), so lanes beyond n read padding, masked off below.
+  for (std::uint32_t k = 0; k < n; k += lanes) {
+    const B x = B::load_unaligned(members.x + k) - ox;
+    const B y = B::load_unaligned(members.y + k) - oy;
+    const B z = B::load_unaligned(members.z + k) - oz;
+    const B limit = xsimd::fma(s, B::load_unaligned(members.bounding + k), r);
+    const B rr = xsimd::fma(x, x, xsimd::fma(y, y, z * z));
+    meet |= lane_bits<Arch>(rr < xsimd::fma(limit * limit, widen, floor)) << k;
+  }
+  return n >= 32 ? meet : meet & ((std::uint32_t(1) << n) - 1);
+}
+
+}  // namespace pwcontact::kernels::PWCONTACT_TARGET
