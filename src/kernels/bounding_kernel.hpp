@@ -1,6 +1,7 @@
 // The coarse test of a moving scene's query (moving_scene.cpp): which of a
-// cell's members have bounding spheres that may meet a trial's, several
-// members per register. Compiled once per target (target.hpp).
+// cell's members have bounding spheres that may meet a trial's (the first
+// test of doc/theory.md eq. 33), several members per register. Compiled once
+// per target (target.hpp).
 //
 // The answer is a superset of the exact test |r|^2 < (reach + scale R_j)^2
 // that the caller then makes member by member in its own (baseline)
