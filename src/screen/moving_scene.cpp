@@ -299,7 +299,8 @@ struct MovingScene::Impl {
   // ---------------------------------------------------------------------
   // Queries
 
-  // A cell's coarse members (coarse_of) and the slot numbers of its members.
+  // A cell's coarse members: four arrays of `capacity` numbers (a multiple of
+  // the kernels' coarse_padding), centres x, y, z and bounding radii.
   kernels::CoarseMembers coarse_of(std::size_t cell) const {
     const double* block = coarse.data() + cell * capacity * 4;
     return {block, block + capacity, block + 2 * capacity, block + 3 * capacity};
