@@ -56,6 +56,10 @@ struct TrialSide {
   TrialSide(const TrialSide&) = delete;
 };
 
+// Which cells a search visits: the trial's own, the others about it, or
+// both (own first).
+enum class Cells { own, others, all };
+
 }  // namespace
 
 struct MovingScene::Impl {
@@ -308,12 +312,12 @@ struct MovingScene::Impl {
 
   // Every stored particle but `exclude` whose bounding sphere meets the
   // trial's at this cutoff, in the scene's search order (the trial's own
-  // cell first, then the cells by their runs; slots in order):
-  // visit(index, detail, bounding, r, rr) with r = c_index - c_trial by the
-  // minimum image; a false return stops the search.
+  // cell first, then the cells by their runs; slots in order), in the cells
+  // `part` names: visit(index, detail, bounding, r, rr) with r = c_index -
+  // c_trial by the minimum image; a false return stops the search.
   template <class Visit>
-  void for_each_near(const Particle& trial, double cutoff, std::int64_t exclude,
-                     Visit&& visit) const {
+  void for_each_near(const Particle& trial, double cutoff, std::int64_t exclude, Visit&& visit,
+                     Cells part = Cells::all) const {
     if (store.size() == 0) return;
     const screen::BoxGeometry& geometry = lists.geometry;
     double w[3], u[3];
@@ -391,7 +395,8 @@ struct MovingScene::Impl {
                         lists.cell_of(g, 2, u[2])};
     const std::size_t own_cell =
         (std::size_t(own[0]) * ny + std::size_t(own[1])) * nz + std::size_t(own[2]);
-    if (!scan(own_cell, w) || !visit_held()) return;
+    if (part != Cells::others && (!scan(own_cell, w) || !visit_held())) return;
+    if (part == Cells::own) return;
     // The trial seen from each combination of the runs' image shifts, made
     // once (made inside the loops below, its stores and reloads stalled
     // a query for about 80 ns at 0.5).
@@ -672,17 +677,22 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
 
 namespace {
 
-// One trial's overlap question, in two stages: the prefilters over every
-// candidate first (stopping at the first overlap they decide), then the
-// kernels on the candidates left, in search order. The answer: the first
-// candidate the prefilters find overlapping, else the first of the solved
-// ones that overlaps, else none. It does not depend on how the solved
-// pairs are grouped, so a batch of trials gets what single queries get.
-// Returns the decided answer (or none), with the undecided candidates
-// appended to `pending` when there is none.
+// One trial's overlap question, asked of its own cell first and then of the
+// other cells about it (a rejected Monte Carlo trial of a packing at 0.5
+// overlaps a particle of its own cell in 58 % of cases, and then the other
+// cells need no scan). Of each part, in two stages: the prefilters over
+// every candidate first (stopping at the first overlap they decide), then
+// the kernels on the candidates left, in search order. The answer: in the
+// own cell, the first candidate the prefilters find overlapping, else the
+// first of the solved ones that overlaps; then the same in the other cells;
+// else none. It does not depend on how the solved pairs are grouped, so a
+// batch of trials gets what single queries get. prefilter_trial is the
+// first stage of one part: it returns the decided answer (or none), with
+// the undecided candidates appended to `pending` when there is none.
 template <class Impl>
 std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial,
-                             std::uint32_t slot, std::int64_t exclude, Pending& pending) {
+                             std::uint32_t slot, std::int64_t exclude, Pending& pending,
+                             Cells part) {
   const TrialSide t(trial);
   const std::size_t first_pending = pending.size();
   std::int64_t found = MovingScene::none;
@@ -701,7 +711,8 @@ std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial
           case screen::NearPair::undecided: pending.add(slot, i, r, t.q, d.q); return true;
         }
         return true;
-      });
+      },
+      part);
   if (found != MovingScene::none) pending.truncate(first_pending);
   return found;
 }
@@ -711,16 +722,19 @@ std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial
 std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
   const Impl& s = *impl_;
   thread_local Pending pending(64);
-  pending.clear();
-  const std::int64_t decided = prefilter_trial(s, trial, 0, exclude, pending);
-  if (decided != none || pending.size() == 0) return decided;
-  // The kernels a SIMD block or two at a time, stopping at the first overlap.
-  detail::PairOverlapSolver& solver = thread_solver(s.solve_options, pairs_per_solve);
-  for (std::size_t begin = 0; begin < pending.size(); begin += pairs_per_solve) {
-    const std::size_t n = std::min(pairs_per_solve, pending.size() - begin);
-    pending.solve(solver, begin, n);
-    for (std::size_t k = begin; k < begin + n; ++k)
-      if (pending.overlap[k]) return pending.index[k];
+  for (Cells part : {Cells::own, Cells::others}) {
+    pending.clear();
+    const std::int64_t decided = prefilter_trial(s, trial, 0, exclude, pending, part);
+    if (decided != none) return decided;
+    if (pending.size() == 0) continue;
+    // The kernels a SIMD block or two at a time, stopping at the first overlap.
+    detail::PairOverlapSolver& solver = thread_solver(s.solve_options, pairs_per_solve);
+    for (std::size_t begin = 0; begin < pending.size(); begin += pairs_per_solve) {
+      const std::size_t n = std::min(pairs_per_solve, pending.size() - begin);
+      pending.solve(solver, begin, n);
+      for (std::size_t k = begin; k < begin + n; ++k)
+        if (pending.overlap[k]) return pending.index[k];
+    }
   }
   return none;
 }
@@ -805,17 +819,23 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
       errors.run([&] {
         detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
         const std::size_t begin = b * block, end = std::min(count, begin + block);
-        pending.clear();
-        for (std::size_t t = begin; t < end; ++t)
-          first_overlap[t] =
-              prefilter_trial(s, trials[t], std::uint32_t(t), exclude ? exclude[t] : none, pending);
-        // The first overlapping pair of each trial without a decided answer.
-        for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
-          const std::size_t n = std::min(solver.capacity(), pending.size() - at);
-          pending.solve(solver, at, n);
+        for (std::size_t t = begin; t < end; ++t) first_overlap[t] = none;
+        // The trials' own cells, then the other cells of the trials without
+        // an answer (prefilter_trial's order).
+        for (Cells part : {Cells::own, Cells::others}) {
+          pending.clear();
+          for (std::size_t t = begin; t < end; ++t)
+            if (part == Cells::own || first_overlap[t] == none)
+              first_overlap[t] = prefilter_trial(s, trials[t], std::uint32_t(t),
+                                                 exclude ? exclude[t] : none, pending, part);
+          // The first overlapping pair of each trial without a decided answer.
+          for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
+            const std::size_t n = std::min(solver.capacity(), pending.size() - at);
+            pending.solve(solver, at, n);
+          }
+          for (std::size_t k = pending.size(); k-- > 0;)
+            if (pending.overlap[k]) first_overlap[pending.trial[k]] = pending.index[k];
         }
-        for (std::size_t k = pending.size(); k-- > 0;)
-          if (pending.overlap[k]) first_overlap[pending.trial[k]] = pending.index[k];
       });
   }
   errors.rethrow_if_failed();
