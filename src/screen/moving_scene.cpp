@@ -310,30 +310,65 @@ struct MovingScene::Impl {
     return {block, block + capacity, block + 2 * capacity, block + 3 * capacity};
   }
 
+  // Where a query looks: the trial's wrapped centre, the runs of cells the
+  // cube of the largest reach about it touches (two or three along each
+  // axis, not always the 3 x 3 x 3 about its cell), its own cell, and the
+  // trial seen from each combination of the runs' image shifts (made here
+  // once: made inside the cells' loops, their stores and reloads stalled a
+  // query for about 80 ns at 0.5). Made once per trial and cutoff, for both
+  // parts of a search.
+  struct NearSearch {
+    double w[3];
+    screen::CellRuns runs[3];
+    bool nearest_image;
+    double trial_reach, scale;
+    std::size_t own_cell;
+    double origins[2][2][2][3];
+  };
+
+  NearSearch near_search(const Particle& trial, double cutoff) const {
+    NearSearch q;
+    const screen::BoxGeometry& geometry = lists.geometry;
+    double u[3];
+    geometry.wrap(trial.centre().data(), q.w);
+    lists.cell_space(q.w, u);
+    const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
+    const screen::ClassGrid& g = grid();
+    for (int k = 0; k < 3; ++k) q.runs[k] = screen::runs_within(lists, g, k, u[k], reach);
+    q.nearest_image = q.runs[0].nearest_image || q.runs[1].nearest_image || q.runs[2].nearest_image;
+    q.trial_reach = cutoff * trial.bounding_radius();
+    q.scale = cutoff;
+    const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
+    q.own_cell =
+        (std::size_t(lists.cell_of(g, 0, u[0])) * ny + std::size_t(lists.cell_of(g, 1, u[1]))) *
+            nz +
+        std::size_t(lists.cell_of(g, 2, u[2]));
+    for (int ra = 0; ra < q.runs[0].count; ++ra)
+      for (int rb = 0; rb < q.runs[1].count; ++rb)
+        for (int rc = 0; rc < q.runs[2].count; ++rc) {
+          const int shift[3] = {q.runs[0].shift[ra], q.runs[1].shift[rb], q.runs[2].shift[rc]};
+          double image[3];
+          geometry.shift_vector(shift, image);
+          for (int k = 0; k < 3; ++k) q.origins[ra][rb][rc][k] = q.w[k] - image[k];
+        }
+    return q;
+  }
+
   // Every stored particle but `exclude` whose bounding sphere meets the
-  // trial's at this cutoff, in the scene's search order (the trial's own
+  // trial's (near_search), in the scene's search order (the trial's own
   // cell first, then the cells by their runs; slots in order), in the cells
   // `part` names: visit(index, detail, bounding, r, rr) with r = c_index -
   // c_trial by the minimum image; a false return stops the search.
   template <class Visit>
-  void for_each_near(const Particle& trial, double cutoff, std::int64_t exclude, Visit&& visit,
+  void for_each_near(const NearSearch& search, std::int64_t exclude, Visit&& visit,
                      Cells part = Cells::all) const {
     if (store.size() == 0) return;
     const screen::BoxGeometry& geometry = lists.geometry;
-    double w[3], u[3];
-    geometry.wrap(trial.centre().data(), w);
-    lists.cell_space(w, u);
-    // The cells the cube of the largest reach about the trial touches: two
-    // or three along each axis (not always the 3 x 3 x 3 about its cell).
-    const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
-    const screen::ClassGrid& g = grid();
-    const screen::CellRuns runs[3] = {screen::runs_within(lists, g, 0, u[0], reach),
-                                      screen::runs_within(lists, g, 1, u[1], reach),
-                                      screen::runs_within(lists, g, 2, u[2], reach)};
-    const bool nearest_image =
-        runs[0].nearest_image || runs[1].nearest_image || runs[2].nearest_image;
-    const double trial_reach = cutoff * trial.bounding_radius(), scale = cutoff;
+    const screen::CellRuns* runs = search.runs;
+    const bool nearest_image = search.nearest_image;
+    const double trial_reach = search.trial_reach, scale = search.scale;
     const kernels::BoundingKernel meet_of = bounding_spheres_meet;
+    const screen::ClassGrid& g = grid();
     const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
     // The members that meet are held, their details and indices prefetched,
     // and visited after the scan of the cells: the loads of their cache
@@ -391,30 +426,15 @@ struct MovingScene::Impl {
       }
       return true;
     };
-    const int own[3] = {lists.cell_of(g, 0, u[0]), lists.cell_of(g, 1, u[1]),
-                        lists.cell_of(g, 2, u[2])};
-    const std::size_t own_cell =
-        (std::size_t(own[0]) * ny + std::size_t(own[1])) * nz + std::size_t(own[2]);
-    if (part != Cells::others && (!scan(own_cell, w) || !visit_held())) return;
+    const std::size_t own_cell = search.own_cell;
+    if (part != Cells::others && (!scan(own_cell, search.w) || !visit_held())) return;
     if (part == Cells::own) return;
-    // The trial seen from each combination of the runs' image shifts, made
-    // once (made inside the loops below, its stores and reloads stalled
-    // a query for about 80 ns at 0.5).
-    double origins[2][2][2][3];
-    for (int ra = 0; ra < runs[0].count; ++ra)
-      for (int rb = 0; rb < runs[1].count; ++rb)
-        for (int rc = 0; rc < runs[2].count; ++rc) {
-          const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb], runs[2].shift[rc]};
-          double image[3];
-          geometry.shift_vector(shift, image);
-          for (int k = 0; k < 3; ++k) origins[ra][rb][rc][k] = w[k] - image[k];
-        }
     for (int ra = 0; ra < runs[0].count; ++ra)
       for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
         for (int rb = 0; rb < runs[1].count; ++rb)
           for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b)
             for (int rc = 0; rc < runs[2].count; ++rc) {
-              const double* origin = origins[ra][rb][rc];
+              const double* origin = search.origins[ra][rb][rc];
               const bool unshifted =
                   runs[0].shift[ra] == 0 && runs[1].shift[rb] == 0 && runs[2].shift[rc] == 0;
               for (int c = runs[2].first[rc]; c <= runs[2].last[rc]; ++c) {
@@ -689,15 +709,14 @@ namespace {
 // batch of trials gets what single queries get. prefilter_trial is the
 // first stage of one part: it returns the decided answer (or none), with
 // the undecided candidates appended to `pending` when there is none.
-template <class Impl>
-std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial,
+template <class Impl, class NearSearch>
+std::int64_t prefilter_trial(const Impl& s, const TrialSide& t, const NearSearch& search,
                              std::uint32_t slot, std::int64_t exclude, Pending& pending,
                              Cells part) {
-  const TrialSide t(trial);
   const std::size_t first_pending = pending.size();
   std::int64_t found = MovingScene::none;
   s.for_each_near(
-      trial, 1.0, exclude,
+      search, exclude,
       [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
         double mu2 = 0;
         switch (
@@ -722,9 +741,11 @@ std::int64_t prefilter_trial(const Impl& s, const ParticleStore::Particle& trial
 std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
   const Impl& s = *impl_;
   thread_local Pending pending(64);
+  const TrialSide t(trial);
+  const auto search = s.near_search(trial, 1.0);
   for (Cells part : {Cells::own, Cells::others}) {
     pending.clear();
-    const std::int64_t decided = prefilter_trial(s, trial, 0, exclude, pending, part);
+    const std::int64_t decided = prefilter_trial(s, t, search, 0, exclude, pending, part);
     if (decided != none) return decided;
     if (pending.size() == 0) continue;
     // The kernels a SIMD block or two at a time, stopping at the first overlap.
@@ -757,7 +778,7 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
   std::vector<Neighbor> out;
   Pending pending(64);
   s.for_each_near(
-      trial, cutoff, exclude,
+      s.near_search(trial, cutoff), exclude,
       [&](std::uint32_t i, const Detail& d, double bounding, const double r[3], double rr) {
         double mu2 = 0;
         switch (screen::decide_near_pair(t.side, member_side(i, d, bounding), r, rr, cutoff,
@@ -814,20 +835,25 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
 #pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads())
   {
     Pending pending(batch_solve_pairs);
+    std::vector<Impl::NearSearch> searches(block);  // of a block's trials, for both parts
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t b = 0; b < blocks; ++b)
       errors.run([&] {
         detail::PairOverlapSolver& solver = thread_solver(s.solve_options, batch_solve_pairs);
         const std::size_t begin = b * block, end = std::min(count, begin + block);
-        for (std::size_t t = begin; t < end; ++t) first_overlap[t] = none;
+        for (std::size_t t = begin; t < end; ++t) {
+          first_overlap[t] = none;
+          searches[t - begin] = s.near_search(trials[t], 1.0);
+        }
         // The trials' own cells, then the other cells of the trials without
         // an answer (prefilter_trial's order).
         for (Cells part : {Cells::own, Cells::others}) {
           pending.clear();
           for (std::size_t t = begin; t < end; ++t)
             if (part == Cells::own || first_overlap[t] == none)
-              first_overlap[t] = prefilter_trial(s, trials[t], std::uint32_t(t),
-                                                 exclude ? exclude[t] : none, pending, part);
+              first_overlap[t] =
+                  prefilter_trial(s, TrialSide(trials[t]), searches[t - begin], std::uint32_t(t),
+                                  exclude ? exclude[t] : none, pending, part);
           // The first overlapping pair of each trial without a decided answer.
           for (std::size_t at = 0; at < pending.size(); at += solver.capacity()) {
             const std::size_t n = std::min(solver.capacity(), pending.size() - at);
