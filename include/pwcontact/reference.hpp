@@ -180,18 +180,34 @@ struct Residual {
   T dg;  // g'(lambda) = -f''(lambda) >= 0
 };
 
+// The element growth of Q = L D L^T (doc/theory.md eq. 40): the largest
+// ratio of the magnitudes that cancel in a pivot to the pivot, >= 1 for a
+// positive definite Q. The relative rounding errors of the pivots, and with
+// them of r^T Q^-1 r and f, are O(eps growth); the certificates of an
+// overlap answer widen their bounds by a multiple of it. (The kernels' copy
+// is growth() in src/kernels/simd_math.hpp.)
+template <class T>
+T element_growth(const Ldlt3<T>& f, const T a[6]) {
+  using std::abs;
+  const T g1 = (a[3] + abs(f.l10 * a[1])) / f.d1;
+  const T g2 = (a[5] + abs(f.l20 * a[2]) + f.l21 * f.l21 * f.d1) / f.d2;
+  return g1 > g2 ? g1 : g2;
+}
+
 // With s = Q^-1 r12 (eq. 9: x0 - c1 = (1 - lambda) Q1 s, x0 - c2 = -lambda Q2 s):
 //   f      = lambda (1 - lambda) r12^T s                            (11)
 //   mu1^2  = (1 - lambda)^2 s^T Q1 s,  mu2^2 = lambda^2 s^T Q2 s    (13)
 //   g'     = 2 (Q1 s)^T Q^-1 (Q2 s) = 2 s^T [(1 - lambda) Q2^-1 + lambda Q1^-1]^-1 s
 // Q is formed as the convex combination (eq. 10), never as Q1 + lambda (Q2 - Q1),
 // which would lose the smaller matrix when the sizes differ by orders of magnitude.
+// growth (may be null) receives the element growth of Q(lambda)'s factors.
 template <class T>
-Residual<T> evaluate(const T r[3], const T q1[6], const T q2[6], T lambda) {
+Residual<T> evaluate(const T r[3], const T q1[6], const T q2[6], T lambda, T* growth = nullptr) {
   const T mu = T(1) - lambda;  // exact for lambda >= 1/2 (Sterbenz)
   T q[6];
   for (int k = 0; k < 6; ++k) q[k] = mu * q1[k] + lambda * q2[k];
   const Ldlt3<T> ldlt(q);
+  if (growth) *growth = element_growth(ldlt, q);
 
   T y[3], z[3], s[3];
   ldlt.forward(r, y);

@@ -705,7 +705,10 @@ namespace {
 // the kernels on the candidates left, in search order. The answer: in the
 // own cell, the first candidate the prefilters find overlapping, else the
 // first of the solved ones that overlaps; then the same in the other cells;
-// else none. It does not depend on how the solved pairs are grouped, so a
+// else none. The prefilters include the certificates of the overlap
+// kernels, taken in scalar arithmetic for a few evaluations
+// (screen::certify_overlap): only the pairs they leave reach the kernels.
+// The answer does not depend on how the solved pairs are grouped, so a
 // batch of trials gets what single queries get. prefilter_trial is the
 // first stage of one part: it returns the decided answer (or none), with
 // the undecided candidates appended to `pending` when there is none.
@@ -727,7 +730,12 @@ std::int64_t prefilter_trial(const Impl& s, const TrialSide& t, const NearSearch
             [[fallthrough]];
           case screen::NearPair::in: found = i; return false;
           case screen::NearPair::out_by_projection: return true;
-          case screen::NearPair::undecided: pending.add(slot, i, r, t.q, d.q); return true;
+          case screen::NearPair::undecided: break;
+        }
+        switch (screen::certify_overlap(r, t.q, d.q, 1.0)) {
+          case screen::Certified::overlapping: found = i; return false;
+          case screen::Certified::apart: return true;
+          case screen::Certified::undecided: pending.add(slot, i, r, t.q, d.q); return true;
         }
         return true;
       },

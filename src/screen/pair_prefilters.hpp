@@ -1,9 +1,11 @@
 // The decisions about a near pair that need no solve, shared by the
-// screening (screen.cpp) and the moving scene (scene.cpp): pairs of spheres
+// screening (screen.cpp) and the moving scene (moving_scene.cpp): pairs of spheres
 // and pairs of one form in closed form, overlapping by the inscribed
-// spheres, apart by the projections on the line of centres.
+// spheres, apart by the projections on the line of centres; and the overlap
+// certificates in scalar arithmetic, for the moving scene's few pairs.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -87,6 +89,77 @@ inline NearPair decide_near_pair(const Side& p, const Side& o, const double r[3]
   if (!with_mu2 && rr < inner * inner) return NearPair::in;
   if (apart_by_projections(p, o, r, rr, cutoff)) return NearPair::out_by_projection;
   return NearPair::undecided;
+}
+
+// What the certificates of an overlap answer decide of one pair in a few
+// scalar evaluations, before any kernel (doc/theory.md, "The overlap
+// decision"): a trial move's few undecided candidates cost a kernel call
+// each time, several hundred nanoseconds of fixed cost for one or two
+// pairs, where most pairs are decided by the first bounds.
+enum class Certified : std::uint8_t { overlapping, apart, undecided };
+
+// Evaluations certify_overlap takes before it leaves a pair to the kernels,
+// by measurement on the Monte Carlo trials of pwcontact_moves (single
+// queries, 1M spheroids): 1 evaluation decides enough for +43 % at packing
+// 0.5, 2 for +58 %, 3 no more than 2.
+inline constexpr int certificate_evaluations = 2;
+
+// Whether mu^2 < cutoff2 for the pair (r = c2 - c1, forms q1, q2), decided
+// by the bounds the overlap kernels keep, each with the margin of eq. 40:
+// m = 256 eps times the largest element growth of Q1, Q2 and every Q(lambda)
+// evaluated (the kernels' margin, measured against errors of at most
+// ~100 growth eps). From above, the radial extents (eq. 31) and then the
+// tangents at the bracket ends (eq. 29); from below, f(lambda) (eq. 27);
+// decided as eq. 45 decides. Between the bounds, safeguarded Newton steps
+// from the guess that is exact for spheres. Undecided: bounds that have not
+// cleared the cutoff after `evaluations` evaluations, or anything the
+// arithmetic could not vouch for (a pivot not positive, a value not
+// finite); the kernels and the reference path decide those.
+inline Certified certify_overlap(const double r[3], const double q1[6], const double q2[6],
+                                 double cutoff2, int evaluations = certificate_evaluations) {
+  constexpr double margin_per_growth = 256 * std::numeric_limits<double>::epsilon();
+  const detail::Ldlt3<double> f1(q1), f2(q2);
+  if (!(f1.d0 > 0 && f1.d1 > 0 && f1.d2 > 0 && f2.d0 > 0 && f2.d1 > 0 && f2.d2 > 0))
+    return Certified::undecided;
+  // sigma_i = r^T Qi^-1 r = f'(0) and -f'(1) (eq. 16).
+  const double sigma1 = detail::inverse_quadratic_form(f1, r);
+  const double sigma2 = detail::inverse_quadratic_form(f2, r);
+  if (!(sigma1 > 0 && sigma2 > 0) || !std::isfinite(sigma1 + sigma2)) return Certified::undecided;
+  double margin =
+      margin_per_growth * std::max(detail::element_growth(f1, q1), detail::element_growth(f2, q2));
+  // Eq. 31: mu^2 <= sigma1 sigma2 / (sqrt(sigma1) + sqrt(sigma2))^2.
+  const double root1 = std::sqrt(sigma1), root2 = std::sqrt(sigma2);
+  const double extents = root1 + root2;
+  double upper = sigma1 * sigma2 / (extents * extents) * (1 + margin);
+  if (upper < cutoff2) return Certified::overlapping;
+  double lower = 0;
+  // The bracket [lo, hi] of the maximiser, with f and g = -f' at its ends
+  // (f = 0 at both, g(0) = -sigma1, g(1) = sigma2), and the guess (eq. 31).
+  double lo = 0, hi = 1, f_lo = 0, g_lo = -sigma1, f_hi = 0, g_hi = sigma2;
+  double lambda = root2 / extents;
+  for (int e = 0; e < evaluations; ++e) {
+    double growth = 0;
+    const detail::Residual<double> at = detail::evaluate(r, q1, q2, lambda, &growth);
+    if (!(growth >= 1) || !std::isfinite(at.f + at.g + at.dg + growth)) return Certified::undecided;
+    margin = std::max(margin, margin_per_growth * growth);
+    lower = std::max(lower, at.f * (1 - margin));  // eq. 27
+    if (lower >= cutoff2) return Certified::apart;
+    if (at.g > 0) {
+      hi = lambda, f_hi = at.f, g_hi = at.g;
+    } else if (at.g < 0) {
+      lo = lambda, f_lo = at.f, g_lo = at.g;
+    }
+    // Eq. 29: where the tangents at the bracket's ends cross.
+    const double x = (f_hi - f_lo + g_hi * hi - g_lo * lo) / (g_hi - g_lo);
+    upper = std::min(upper, (f_lo - g_lo * (x - lo)) * (1 + margin));
+    if (upper < cutoff2) return Certified::overlapping;
+    // Bounds that have met within their margins straddle the cutoff: only
+    // an exact solve can tell (eq. 45's settled lanes).
+    if (upper <= lower * (1 + 8 * margin)) return Certified::undecided;
+    const double newton = lambda - at.g / at.dg;
+    lambda = newton > lo && newton < hi ? newton : 0.5 * (lo + hi);
+  }
+  return Certified::undecided;
 }
 
 }  // namespace pwcontact::screen
