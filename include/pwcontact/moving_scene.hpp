@@ -17,7 +17,9 @@
 //
 // Answers are exact as screen_pairs' are: the same prefilters (bounding and
 // inscribed spheres, projections on r12, spheres and pairs of one form in
-// closed form), then the overlap kernels on the candidates left.
+// closed form); for overlap answers, the overlap kernels' certificates taken
+// in scalar arithmetic for up to two evaluations; then the overlap kernels
+// on the candidates left.
 #pragma once
 
 #include <array>

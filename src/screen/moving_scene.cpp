@@ -797,7 +797,15 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
             break;
           case screen::NearPair::in: out.push_back({i, nan}); break;
           case screen::NearPair::out_by_projection: break;
-          case screen::NearPair::undecided: pending.add(0, i, r, t.q, d.q); break;
+          case screen::NearPair::undecided:
+            // (Without mu^2 the certificates decide most of them, as in overlaps.)
+            switch (with_mu2 ? screen::Certified::undecided
+                             : screen::certify_overlap(r, t.q, d.q, cutoff * cutoff)) {
+              case screen::Certified::overlapping: out.push_back({i, nan}); break;
+              case screen::Certified::apart: break;
+              case screen::Certified::undecided: pending.add(0, i, r, t.q, d.q); break;
+            }
+            break;
         }
         return true;
       });
