@@ -247,6 +247,42 @@ TEST_P(OverlapCertificates, DecideOnlyAsTheExactClassificationDoes) {
   }
 }
 
+// The same at scales from 2^-530 (forms with subnormal entries) to 2^500:
+// the scene-like pairs with r12 scaled by 2^k and the forms by 2^2k, each
+// set with the oracle's mu^2 of its own (rounded) inputs. The certificates
+// scale the pair back first, so they decide as many pairs wherever the
+// scaled inputs are exact (|k| <= 500), and none wrongly anywhere.
+TEST(OverlapCertificates, DecideOnlyAsTheOracleDoesAtExtremeScales) {
+  const Classified& base = family(FamilyName::scene_like, 1, false);
+  const std::vector<Pair<double>> shapes(base.pairs.begin(), base.pairs.begin() + 4000);
+  std::size_t decided_at_unit_scale = 0;
+  for (int k : {0, -530, -500, -250, 250, 500}) {
+    std::vector<Pair<double>> scaled = shapes;
+    for (Pair<double>& p : scaled) {
+      for (double& x : p.r12) x = std::ldexp(x, k);
+      for (double& x : p.q1) x = std::ldexp(x, 2 * k);
+      for (double& x : p.q2) x = std::ldexp(x, 2 * k);
+    }
+    const Classified f = with_oracle(scaled);
+    std::size_t decided = 0, wrong = 0;
+    for (std::size_t i = 0; i < f.pairs.size(); ++i) {
+      const Pair<double>& p = f.pairs[i];
+      const pwcontact::screen::Certified answer =
+          pwcontact::screen::certify_overlap(p.r12.data(), p.q1.data(), p.q2.data(), 1.0);
+      if (answer == pwcontact::screen::Certified::undecided) continue;
+      ++decided;
+      wrong += (answer == pwcontact::screen::Certified::overlapping) != (f.mu2[i] < 1);
+    }
+    std::printf("[ measured ] scale 2^%d: %zu of %zu pairs decided\n", k, decided, f.pairs.size());
+    EXPECT_EQ(wrong, 0u) << "scale 2^" << k;
+    if (k == 0) decided_at_unit_scale = decided;
+    if (k >= -500) {
+      EXPECT_EQ(decided, decided_at_unit_scale) << "scale 2^" << k;
+    }
+  }
+  EXPECT_GT(decided_at_unit_scale, 3900u);
+}
+
 INSTANTIATE_TEST_SUITE_P(EveryFamily, OverlapCertificates,
                          ::testing::Values(FamilyName::random, FamilyName::pw85,
                                            FamilyName::scene_like, FamilyName::near_tangent),

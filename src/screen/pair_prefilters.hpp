@@ -104,6 +104,27 @@ enum class Certified : std::uint8_t { overlapping, apart, undecided };
 // 0.5, 2 for +58 %, 3 no more than 2.
 inline constexpr int certificate_evaluations = 2;
 
+// The range the certificates' arithmetic keeps to: pivots (and so every
+// quantity of degree -2 in the length scale) at least this, and the
+// numbers of degree 0 (sigma, f, g) within [floor, 1 / floor]. Far from
+// underflow and overflow, so that the rounding errors are the relative ones
+// eq. 40's margins count.
+inline constexpr double certificate_floor = 0x1p-500;
+
+// The growth beyond which the margin (256 eps growth, 2^-4 here) leaves the
+// bounds too wide to decide anything worth the evaluations.
+inline constexpr double certificate_growth_cap = 0x1p40;
+
+// The factors of Q = L D L^T when they are usable by the certificates: every
+// pivot at least certificate_floor and the growth at most the cap (0
+// otherwise, else the growth).
+inline double usable_growth(const detail::Ldlt3<double>& f) {
+  if (!(f.d0 >= certificate_floor && f.d1 >= certificate_floor && f.d2 >= certificate_floor))
+    return 0;
+  const double growth = detail::element_growth(f);
+  return growth <= certificate_growth_cap ? growth : 0;
+}
+
 // Whether mu^2 < cutoff2 for the pair (r = c2 - c1, forms q1, q2), decided
 // by the bounds the overlap kernels keep, each with the margin of eq. 40:
 // m = 256 eps times the largest element growth of Q1, Q2 and every Q(lambda)
@@ -111,36 +132,55 @@ inline constexpr int certificate_evaluations = 2;
 // ~100 growth eps). From above, the radial extents (eq. 31) and then the
 // tangents at the bracket ends (eq. 29); from below, f(lambda) (eq. 27);
 // decided as eq. 45 decides. Between the bounds, safeguarded Newton steps
-// from the guess that is exact for spheres. Undecided: bounds that have not
-// cleared the cutoff after `evaluations` evaluations, or anything the
-// arithmetic could not vouch for (a pivot not positive, a value not
-// finite); the kernels and the reference path decide those.
-inline Certified certify_overlap(const double r[3], const double q1[6], const double q2[6],
-                                 double cutoff2, int evaluations = certificate_evaluations) {
+// from the guess that is exact for spheres. The pair is first scaled by a
+// power of two (exactly; mu^2 does not change) so that the largest diagonal
+// entry of the forms is in [1, 4), as the kernels nondimensionalise.
+// Undecided: bounds that have not cleared the cutoff after `evaluations`
+// evaluations, or a pair whose arithmetic would leave the range above
+// (certificate_floor, the growth cap); the kernels and the reference path
+// decide those.
+inline Certified certify_overlap(const double r12[3], const double q1_given[6],
+                                 const double q2_given[6], double cutoff2,
+                                 int evaluations = certificate_evaluations) {
   constexpr double margin_per_growth = 256 * std::numeric_limits<double>::epsilon();
-  const detail::Ldlt3<double> f1(q1), f2(q2);
-  if (!(f1.d0 > 0 && f1.d1 > 0 && f1.d2 > 0 && f2.d0 > 0 && f2.d1 > 0 && f2.d2 > 0))
+  const double largest =
+      std::max({q1_given[0], q1_given[3], q1_given[5], q2_given[0], q2_given[3], q2_given[5]});
+  if (!(largest > 0) || !(largest < std::numeric_limits<double>::infinity()))
     return Certified::undecided;
+  // sqrt(largest) = m 2^e with m in [1/2, 1): t = 2^(1 - e), t^2 largest in [1, 4).
+  int e = 0;
+  std::frexp(std::sqrt(largest), &e);
+  // (The forms times t twice: t^2 itself overflows for forms below ~2^-1024.)
+  const double t = std::ldexp(1.0, 1 - e);
+  double r[3], q1[6], q2[6];
+  for (int k = 0; k < 3; ++k) r[k] = r12[k] * t;
+  for (int k = 0; k < 6; ++k) q1[k] = q1_given[k] * t * t, q2[k] = q2_given[k] * t * t;
+  const detail::Ldlt3<double> f1(q1), f2(q2);
+  const double growth1 = usable_growth(f1), growth2 = usable_growth(f2);
+  if (!(growth1 > 0 && growth2 > 0)) return Certified::undecided;
   // sigma_i = r^T Qi^-1 r = f'(0) and -f'(1) (eq. 16).
   const double sigma1 = detail::inverse_quadratic_form(f1, r);
   const double sigma2 = detail::inverse_quadratic_form(f2, r);
-  if (!(sigma1 > 0 && sigma2 > 0) || !std::isfinite(sigma1 + sigma2)) return Certified::undecided;
-  double margin =
-      margin_per_growth * std::max(detail::element_growth(f1, q1), detail::element_growth(f2, q2));
+  auto in_range = [](double x) { return x >= certificate_floor && x <= 1 / certificate_floor; };
+  if (!in_range(sigma1) || !in_range(sigma2)) return Certified::undecided;
+  double margin = margin_per_growth * std::max(growth1, growth2);
   // Eq. 31: mu^2 <= sigma1 sigma2 / (sqrt(sigma1) + sqrt(sigma2))^2.
   const double root1 = std::sqrt(sigma1), root2 = std::sqrt(sigma2);
   const double extents = root1 + root2;
-  double upper = sigma1 * sigma2 / (extents * extents) * (1 + margin);
+  double upper = sigma1 / extents * (sigma2 / extents) * (1 + margin);
   if (upper < cutoff2) return Certified::overlapping;
   double lower = 0;
   // The bracket [lo, hi] of the maximiser, with f and g = -f' at its ends
   // (f = 0 at both, g(0) = -sigma1, g(1) = sigma2), and the guess (eq. 31).
   double lo = 0, hi = 1, f_lo = 0, g_lo = -sigma1, f_hi = 0, g_hi = sigma2;
   double lambda = root2 / extents;
-  for (int e = 0; e < evaluations; ++e) {
-    double growth = 0;
-    const detail::Residual<double> at = detail::evaluate(r, q1, q2, lambda, &growth);
-    if (!(growth >= 1) || !std::isfinite(at.f + at.g + at.dg + growth)) return Certified::undecided;
+  for (int n = 0; n < evaluations; ++n) {
+    detail::Ldlt3<double> factors;
+    const detail::Residual<double> at = detail::evaluate(r, q1, q2, lambda, &factors);
+    const double growth = usable_growth(factors);
+    if (!(growth > 0) || !in_range(at.f) || !std::isfinite(at.g) || !(at.dg > 0) ||
+        !std::isfinite(at.dg))
+      return Certified::undecided;
     margin = std::max(margin, margin_per_growth * growth);
     lower = std::max(lower, at.f * (1 - margin));  // eq. 27
     if (lower >= cutoff2) return Certified::apart;
