@@ -1,12 +1,14 @@
 // The batch kernels on arbitrary bit patterns: up to 48 pairs of 15 raw
 // doubles (or floats), every option combination chosen by the first bytes.
 // No crash, no sanitizer report, and every answer checked against the
-// reference path (fuzz_checks.hpp).
+// reference path (fuzz_checks.hpp); in overlap mode also the moving scene's
+// scalar certificates (screen::certify_overlap) on the same pairs.
 #include <cstdint>
 #include <cstring>
 #include <vector>
 
 #include "fuzz_checks.hpp"
+#include "screen/pair_prefilters.hpp"
 
 using namespace pwcontact;
 
@@ -60,6 +62,14 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t knobs, std::ui
       double r[3], q1[6], q2[6];
       widened(i, r, q1, q2);
       fuzz::check_overlap_answer(r, q1, q2, overlap[i], status[i], cutoff * cutoff, eps);
+      // The moving scene's scalar certificates on the same pair: what they
+      // decide is held to the same classification.
+      const screen::Certified certified =
+          screen::certify_overlap(r, q1, q2, cutoff * cutoff, 1 + (more >> 5) % 8);
+      if (certified != screen::Certified::undecided)
+        fuzz::check_overlap_answer(r, q1, q2, certified == screen::Certified::overlapping,
+                                   Status::ok, cutoff * cutoff,
+                                   std::numeric_limits<double>::epsilon());
     }
     return;
   }

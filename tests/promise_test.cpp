@@ -6,8 +6,9 @@
 // promise, against the reference path in 50 digits or a closed form:
 // - float lanes on sizes 1e5 .. 1e9 apart (lambda* within 1e-7 of 1);
 // - stored forms that are not positive definite by a hair (an exact test);
-// - mu^2-only answers with lambda* near 0 or 1, on plateaus, with fixed
-//   iteration counts; near-tangent pairs of very different sizes;
+// - mu^2-only answers with lambda* near 0 or 1, on plateaus, beside discs
+//   thinner than 1e-8, with fixed iteration counts; near-tangent pairs of
+//   very different sizes;
 // - lambda and the contact geometry on crossed needles and discs;
 // - distances far below or beyond the sizes (float and double), coincident
 //   centres to 1e-170, mu^2 that overflows: a status, never inf or 0 as valid;
@@ -284,6 +285,31 @@ std::vector<Pair<double>> crossed_pairs(std::size_t n, double low, double high,
   return placed(pairs, placement);
 }
 
+// A disc of semi-axes 1, 1 and a thickness log-uniform in [1e-30, 1e-8]
+// (normal along x, y or z: a thinner one in a tilted frame would not be
+// positive definite once rounded) beside a random shape of the random family,
+// in a random direction, at mu in [0.5, 2]: the radial guess lambda ~
+// thickness, where g' ~ 1 / lambda^3 makes the predicted gain of a Newton
+// step negligible however far lambda* lies (was: a disc 8e-16 thick beside a
+// unit sphere, found by kernels_fuzz: mu^2 0.1 % low with status ok, the
+// kernels' convergence test passing at a step as long as lambda itself).
+std::vector<Pair<double>> thin_disc_pairs(std::size_t n, std::uint64_t seed) {
+  Engine engine(seed);
+  const std::vector<Pair<double>> partners = make_random_pairs(n, seed + 1);
+  std::vector<Pair<double>> pairs;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double thickness = log_uniform(engine, 1e-30, 1e-8);
+    std::array<double, 6> disc = {1, 0, 0, 1, 0, 1};
+    disc[std::array<int, 3>{0, 3, 5}[k % 3]] = thickness * thickness;
+    const auto d = direction(engine);
+    Pair<double> p = make_pair(d, disc, partners[k].q2);
+    if (k % 2) std::swap(p.q1, p.q2);
+    pairs.push_back(p);
+  }
+  Engine placement(seed + 2);
+  return placed(pairs, placement);
+}
+
 // Two spheres of radii log-uniform in [1e-4, 1e4] each, at mu in [0.5, 2].
 std::vector<Pair<double>> sphere_pairs(std::size_t n, std::uint64_t seed) {
   Engine engine(seed);
@@ -308,6 +334,7 @@ TEST_P(Promise, MuSquaredOnlyAnswersStayWithinTheFloor) {
   const Family families[] = {
       {"sizes 1e5 .. 1e12 apart", solved(size_ratio_pairs(1200, 5, 12, 906))},
       {"crossed needles and discs, aspect 30 .. 1e7", solved(crossed_pairs(900, 1.5, 7, 907))},
+      {"discs 1e-30 .. 1e-8 thick beside random shapes", solved(thin_disc_pairs(600, 909))},
   };
   for (const Family& family : families)
     for (Precision precision : {Precision::double_precision, Precision::mixed})
@@ -317,7 +344,14 @@ TEST_P(Promise, MuSquaredOnlyAnswersStayWithinTheFloor) {
                                     std::to_string(iterations) + ", " + describe(requested);
           BatchOptions options = with_precision(with_isa(GetParam(), iterations), precision);
           const BatchRun<double> run = run_batch(make_batch(family.set.pairs), options, requested);
-          const Broken b = expect_promise_kept(family.set, run, eps, never, label);
+          // not_converged is honest where the reference path itself, which
+          // the kernels hand such lanes to, does not converge (one disc
+          // 1.1e-29 thick: lambda* within ~1e-29 of 1, where its steps stop).
+          const auto as_the_reference = [&](std::size_t i, Status status) {
+            return status == Status::not_converged &&
+                   reference(family.set.pairs[i]).status == Status::not_converged;
+          };
+          const Broken b = expect_promise_kept(family.set, run, eps, as_the_reference, label);
           if (iterations == 0) print_broken(label, b);
         }
 }

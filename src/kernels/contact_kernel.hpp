@@ -198,6 +198,9 @@ void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status
 // is then f + gain. Without the third-order test a lane with lambda*
 // near 0 or 1 (very different sizes) would stop where the step is a
 // sizeable fraction of w and the gain's error hundreds of eps.
+// The model is trusted only for a step below model_step w (the expansion
+// is a series in step / w): a negligible gain at a step as long as w says
+// nothing about how far lambda* lies.
 // When lambda or what depends on it is asked for, the step must also
 // be below lambda_step w: lambda itself (the Newton step's) is then
 // accurate to ~1e-12 w (a small gain alone does not make it so where f
@@ -238,6 +241,7 @@ PWCONTACT_INLINE Convergence<B> convergence_test(
   M small_step = B(0) == B(0);
   if (lambda_asked) small_step = abs_step <= B(KernelTolerance<T>::lambda_step) * width;
   const M corrected = in_bracket & (e.dg > B(0)) & (gain <= gain_tolerance * e.f) &
+                      (abs_step <= B(KernelTolerance<T>::model_step) * width) &
                       (gain * abs_step <= B(KernelTolerance<T>::third_order) * width * e.f) &
                       small_step;
   const M bounded =

@@ -53,6 +53,15 @@ struct KernelTolerance<double> {
   // this small relative to w: the reported lambda, the step's, then errs by
   // ~|g''/(2 g')| step^2 ~ 1.5 (step / w)^2 w, ~1e-12 w.
   static constexpr double lambda_step = 0x1p-20;
+  // The expansion behind the corrected answer (doc/theory.md eq. 24) is a
+  // series in step / w, w the distance to g's nearest pole: it is trusted
+  // only for steps at most this fraction of w (the reference path's stall
+  // test takes the same). A step as long as lambda with a negligible
+  // predicted gain is no convergence: beside a disc thinner than ~1e-15 the
+  // radial guess is lambda ~ its thickness, g' ~ 1 / lambda^3 there, and
+  // Newton's steps grow from lambda / 2 to lambda* ~ 0.03 (was: answered
+  // f + gain 0.1 % below mu^2 with status ok, found by kernels_fuzz).
+  static constexpr double model_step = 1.0 / 16;
   // Lanes the kernels take: f'(0) = r^T Q1^-1 r and -f'(1) = r^T Q2^-1 r
   // (the squared distance in units of each ellipsoid's extent along r12)
   // within these bounds and within this factor of each other (so that the
@@ -88,6 +97,7 @@ struct KernelTolerance<float> {
   static constexpr float third_order = std::numeric_limits<float>::epsilon();
   // lambda within ~1.5 (2^-11)^2 w ~ 4e-7 w: the float floor of lambda.
   static constexpr float lambda_step = 0x1p-11f;
+  static constexpr float model_step = 1.0f / 16;  // (as in double)
   // (float's range is 2^+-126: quantities within ~2^+-61 of the scale's
   // power; sizes at most ~2^15 apart, lambda* at least ~3e-5 from 0 and 1)
   static constexpr float slope_low = 0x1p-30f, slope_high = 0x1p30f, slope_ratio = 0x1p-30f;
