@@ -370,6 +370,17 @@ Maximum<T> maximise(const T r[3], const T* p1, const T* p2, T lambda,
   T previous_step = 1;
   for (int it = 1; it <= options.max_iterations; ++it) {
     const Residual<T> res = evaluate(r, p1, p2, lambda);
+    // At a clamp with g pointing beyond it, lambda* lies closer to 0 or 1
+    // than eps/2 and f here is mu^2 to eps/2 (below_one): the end, as a
+    // Newton step clamped back onto lambda would make it, whatever g' says.
+    // (Was: a disc 1.1e-29 thick beside a shape of size 1, lambda* ~1e-29 on
+    // the mirrored pair: at the floor g' came out -1, all cancellation, and
+    // the pair was not_converged.)
+    if (((lambda == floor && res.g > 0) || (lambda == ceiling && res.g < 0)) && res.f > 0 &&
+        isfinite(res.f)) {
+      iterations += it;
+      return {res.f, lambda, true};
+    }
     // Lost to round-off: give up honestly. (g' = 0 is allowed: a form that
     // the scaling left without digits has none; the step is then a bisection.)
     if (!(res.dg >= 0) || !(res.f >= 0)) {
