@@ -217,7 +217,9 @@ TEST(Pw85Family, SinglePrecisionFinishesInDoubleLanesWhatFloatLanesCannot) {
       "[ measured ] pw85 family, overlap in single precision: %zu finished in double "
       "lanes, %zu fallbacks\n",
       overlap.report.finished_in_double, overlap.report.fallbacks);
-  if (simd) EXPECT_LE(overlap.report.fallbacks, n / 100);
+  if (simd) {
+    EXPECT_LE(overlap.report.fallbacks, n / 100);
+  }
   std::size_t differing = 0;
   for (std::size_t i = 0; i < n; ++i) {
     // (The float lanes decide on the pairs rounded to float: answers may
