@@ -132,27 +132,29 @@ inline double usable_growth(const detail::Ldlt3<double>& f) {
 // ~100 growth eps). From above, the radial extents (eq. 31) and then the
 // tangents at the bracket ends (eq. 29); from below, f(lambda) (eq. 27);
 // decided as eq. 45 decides. Between the bounds, safeguarded Newton steps
-// from the guess that is exact for spheres. The pair is first scaled by
-// powers of two, as the reference path scales it (detail::ScaledPair).
+// from the guess that is exact for spheres. The pair is first scaled by a
+// power of two (exactly; mu^2 does not change) so that the largest diagonal
+// entry of the forms is in [1, 4), as the kernels nondimensionalise.
 // Undecided: bounds that have not cleared the cutoff after `evaluations`
 // evaluations, or a pair whose arithmetic would leave the range above
 // (certificate_floor, the growth cap); the kernels and the reference path
 // decide those.
 inline Certified certify_overlap(const double r12[3], const double q1_given[6],
-                                 const double q2_given[6], double cutoff2_given,
+                                 const double q2_given[6], double cutoff2,
                                  int evaluations = certificate_evaluations) {
   constexpr double margin_per_growth = 256 * std::numeric_limits<double>::epsilon();
-  // Scaled by powers of two (exact; eq. 36), as the reference path scales:
-  // the forms' largest diagonal entry into [1/4, 1), r12's largest
-  // component into [1/2, 1); mu^2 is then scaled by a power of two, and so
-  // is the cutoff it is compared with. (Beyond double's range that cutoff
-  // is 0 or inf, which the bounds below, normal numbers, compare with
-  // rightly.)
-  const detail::ScaledPair<double> scaled(r12, q1_given, q2_given);
-  const double* r = scaled.r;
-  const double* q1 = scaled.q1;
-  const double* q2 = scaled.q2;
-  const double cutoff2 = std::ldexp(cutoff2_given, -2 * (scaled.r_exponent - scaled.q_exponent));
+  const double largest =
+      std::max({q1_given[0], q1_given[3], q1_given[5], q2_given[0], q2_given[3], q2_given[5]});
+  if (!(largest > 0) || !(largest < std::numeric_limits<double>::infinity()))
+    return Certified::undecided;
+  // sqrt(largest) = m 2^e with m in [1/2, 1): t = 2^(1 - e), t^2 largest in [1, 4).
+  int e = 0;
+  std::frexp(std::sqrt(largest), &e);
+  // (The forms times t twice: t^2 itself overflows for forms below ~2^-1024.)
+  const double t = std::ldexp(1.0, 1 - e);
+  double r[3], q1[6], q2[6];
+  for (int k = 0; k < 3; ++k) r[k] = r12[k] * t;
+  for (int k = 0; k < 6; ++k) q1[k] = q1_given[k] * t * t, q2[k] = q2_given[k] * t * t;
   const detail::Ldlt3<double> f1(q1), f2(q2);
   const double growth1 = usable_growth(f1), growth2 = usable_growth(f2);
   if (!(growth1 > 0 && growth2 > 0)) return Certified::undecided;
