@@ -61,7 +61,6 @@ struct Ldlt3 {
   T d0, d1, d2;
   T l10, l20, l21;
 
-  Ldlt3() = default;
   explicit Ldlt3(const T a[6]) {
     d0 = a[0];
     l10 = a[1] / d0;
@@ -181,36 +180,18 @@ struct Residual {
   T dg;  // g'(lambda) = -f''(lambda) >= 0
 };
 
-// The element growth of Q = L D L^T (doc/theory.md eq. 40): the largest
-// ratio of the magnitudes that cancel in a pivot to the pivot, >= 1 for a
-// positive definite Q, from the factors alone (q3 + |l10 q1| = d1 + 2 l10^2
-// d0, and q5 + |l20 q2| + l21^2 d1 = d2 + 2 l20^2 d0 + 2 l21^2 d1). The
-// relative rounding errors of the pivots, and with them of r^T Q^-1 r and
-// f, are O(eps growth); the certificates of an overlap answer widen their
-// bounds by a multiple of it. (The kernels' copy is growth() in
-// src/kernels/simd_math.hpp, from the form's entries.)
-template <class T>
-T element_growth(const Ldlt3<T>& f) {
-  const T g1 = T(1) + T(2) * f.l10 * f.l10 * f.d0 / f.d1;
-  const T g2 = T(1) + T(2) * (f.l20 * f.l20 * f.d0 + f.l21 * f.l21 * f.d1) / f.d2;
-  return g1 > g2 ? g1 : g2;
-}
-
 // With s = Q^-1 r12 (eq. 9: x0 - c1 = (1 - lambda) Q1 s, x0 - c2 = -lambda Q2 s):
 //   f      = lambda (1 - lambda) r12^T s                            (11)
 //   mu1^2  = (1 - lambda)^2 s^T Q1 s,  mu2^2 = lambda^2 s^T Q2 s    (13)
 //   g'     = 2 (Q1 s)^T Q^-1 (Q2 s) = 2 s^T [(1 - lambda) Q2^-1 + lambda Q1^-1]^-1 s
 // Q is formed as the convex combination (eq. 10), never as Q1 + lambda (Q2 - Q1),
 // which would lose the smaller matrix when the sizes differ by orders of magnitude.
-// factors (may be null) receives Q(lambda) = L D L^T.
 template <class T>
-Residual<T> evaluate(const T r[3], const T q1[6], const T q2[6], T lambda,
-                     Ldlt3<T>* factors = nullptr) {
+Residual<T> evaluate(const T r[3], const T q1[6], const T q2[6], T lambda) {
   const T mu = T(1) - lambda;  // exact for lambda >= 1/2 (Sterbenz)
   T q[6];
   for (int k = 0; k < 6; ++k) q[k] = mu * q1[k] + lambda * q2[k];
   const Ldlt3<T> ldlt(q);
-  if (factors) *factors = ldlt;
 
   T y[3], z[3], s[3];
   ldlt.forward(r, y);

@@ -102,7 +102,7 @@ PWCONTACT_INLINE auto positive_definite(const Ldlt<B>& f, const B a[6]) {
 // An empirical measure of the error of f, calibrated with the margins that
 // use it; the definiteness test above uses the rigorous pivot_terms. (The
 // scalar certificates of the moving scene take the same ratio from the
-// factors alone: element_growth in reference.hpp.)
+// factors alone: certificate::Factors in src/screen/pair_prefilters.hpp.)
 template <class B>
 PWCONTACT_INLINE B growth(const Ldlt<B>& f, const B a[6]) {
   // d1 = a3 - l10 a1 and d2 = a5 - l20 a2 - l21 t with t = l21 d1.

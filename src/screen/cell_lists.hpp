@@ -262,9 +262,11 @@ struct CellRuns {
   bool nearest_image = false;
 };
 
-inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k, double u,
-                            double reach) {
-  CellRuns runs;
+// (Written into `runs` in place: a CellRuns filled field by field and then
+// copied whole stalls on the store-to-load forwarding of its fields.)
+inline void runs_within(const CellLists& lists, const ClassGrid& grid, int k, double u,
+                        double reach, CellRuns& runs) {
+  runs = CellRuns();
   const int n = grid.cells[k];
   auto add = [&](int first, int last, int shift) {
     runs.first[runs.count] = first;
@@ -273,14 +275,14 @@ inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k
   };
   if (!lists.geometry.periodic[k]) {
     add(lists.cell_of(grid, k, u - reach), lists.cell_of(grid, k, u + reach), 0);
-    return runs;
+    return;
   }
   const double low = std::floor((u - reach) * grid.inverse_side[k]);
   const double high = std::floor((u + reach) * grid.inverse_side[k]);
   if (!(high - low + 1 < n)) {
     runs.nearest_image = true;
     add(0, n - 1, 0);
-    return runs;
+    return;
   }
   const int lo = int(low), hi = int(high);
   if (lo < 0) {
@@ -292,6 +294,11 @@ inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k
   } else {
     add(lo, hi, 0);
   }
+}
+inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k, double u,
+                            double reach) {
+  CellRuns runs;
+  runs_within(lists, grid, k, u, reach, runs);
   return runs;
 }
 

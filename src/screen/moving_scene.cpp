@@ -14,6 +14,7 @@
 #include "parallel_errors.hpp"
 #include "pwcontact/moving_scene.hpp"
 #include "screen/cell_lists.hpp"
+#include "screen/huge_pages.hpp"
 #include "screen/pair_prefilters.hpp"
 
 namespace pwcontact {
@@ -249,6 +250,14 @@ struct MovingScene::Impl {
     capacity = std::max<std::size_t>({8, fullest + fullest / 2 + 2, capacity});
     capacity = (capacity + kernels::coarse_padding - 1) / kernels::coarse_padding *
                kernels::coarse_padding;
+    // In huge pages where the kernel offers them: a query reads a few cache
+    // lines of each of ~15 cells, each cell's slots kilobytes apart, so that
+    // with 4 KiB pages most reads also missed the TLB.
+    screen::reserve_in_huge_pages(coarse, cell_total * capacity * 4);
+    screen::reserve_in_huge_pages(details, cell_total * capacity);
+    screen::reserve_in_huge_pages(members, cell_total * capacity);
+    screen::reserve_in_huge_pages(count, cell_total);
+    screen::reserve_in_huge_pages(where, n);
     count.assign(cell_total, 0);
     coarse.assign(cell_total * capacity * 4, 0.0);
     details.assign(cell_total * capacity, Detail{});
@@ -312,18 +321,14 @@ struct MovingScene::Impl {
 
   // Where a query looks: the trial's wrapped centre, the runs of cells the
   // cube of the largest reach about it touches (two or three along each
-  // axis, not always the 3 x 3 x 3 about its cell), its own cell, and the
-  // trial seen from each combination of the runs' image shifts (made here
-  // once: made inside the cells' loops, their stores and reloads stalled a
-  // query for about 80 ns at 0.5). Made once per trial and cutoff, for both
-  // parts of a search.
+  // axis, not always the 3 x 3 x 3 about its cell) and its own cell. Made
+  // once per trial and cutoff, for both parts of a search.
   struct NearSearch {
     double w[3];
     screen::CellRuns runs[3];
     bool nearest_image;
     double trial_reach, scale;
     std::size_t own_cell;
-    double origins[2][2][2][3];
   };
 
   NearSearch near_search(const Particle& trial, double cutoff) const {
@@ -334,7 +339,7 @@ struct MovingScene::Impl {
     lists.cell_space(q.w, u);
     const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
     const screen::ClassGrid& g = grid();
-    for (int k = 0; k < 3; ++k) q.runs[k] = screen::runs_within(lists, g, k, u[k], reach);
+    for (int k = 0; k < 3; ++k) screen::runs_within(lists, g, k, u[k], reach, q.runs[k]);
     q.nearest_image = q.runs[0].nearest_image || q.runs[1].nearest_image || q.runs[2].nearest_image;
     q.trial_reach = cutoff * trial.bounding_radius();
     q.scale = cutoff;
@@ -343,14 +348,6 @@ struct MovingScene::Impl {
         (std::size_t(lists.cell_of(g, 0, u[0])) * ny + std::size_t(lists.cell_of(g, 1, u[1]))) *
             nz +
         std::size_t(lists.cell_of(g, 2, u[2]));
-    for (int ra = 0; ra < q.runs[0].count; ++ra)
-      for (int rb = 0; rb < q.runs[1].count; ++rb)
-        for (int rc = 0; rc < q.runs[2].count; ++rc) {
-          const int shift[3] = {q.runs[0].shift[ra], q.runs[1].shift[rb], q.runs[2].shift[rc]};
-          double image[3];
-          geometry.shift_vector(shift, image);
-          for (int k = 0; k < 3; ++k) q.origins[ra][rb][rc][k] = q.w[k] - image[k];
-        }
     return q;
   }
 
@@ -426,15 +423,30 @@ struct MovingScene::Impl {
       }
       return true;
     };
+    // The cells about the trial's own, each run with the trial seen from its
+    // image shift (made here once: made inside the cells' loops, their
+    // stores and reloads stalled a query for about 80 ns at 0.5).
     const std::size_t own_cell = search.own_cell;
+    double origins[2][2][2][3];
+    auto prepare_others = [&]() {
+      for (int ra = 0; ra < runs[0].count; ++ra)
+        for (int rb = 0; rb < runs[1].count; ++rb)
+          for (int rc = 0; rc < runs[2].count; ++rc) {
+            const int shift[3] = {runs[0].shift[ra], runs[1].shift[rb], runs[2].shift[rc]};
+            double image[3];
+            geometry.shift_vector(shift, image);
+            for (int k = 0; k < 3; ++k) origins[ra][rb][rc][k] = search.w[k] - image[k];
+          }
+    };
     if (part != Cells::others && (!scan(own_cell, search.w) || !visit_held())) return;
     if (part == Cells::own) return;
+    prepare_others();
     for (int ra = 0; ra < runs[0].count; ++ra)
       for (int a = runs[0].first[ra]; a <= runs[0].last[ra]; ++a)
         for (int rb = 0; rb < runs[1].count; ++rb)
           for (int b = runs[1].first[rb]; b <= runs[1].last[rb]; ++b)
             for (int rc = 0; rc < runs[2].count; ++rc) {
-              const double* origin = search.origins[ra][rb][rc];
+              const double* origin = origins[ra][rb][rc];
               const bool unshifted =
                   runs[0].shift[ra] == 0 && runs[1].shift[rb] == 0 && runs[2].shift[rc] == 0;
               for (int c = runs[2].first[rc]; c <= runs[2].last[rc]; ++c) {
@@ -443,6 +455,7 @@ struct MovingScene::Impl {
                 if (unshifted && cell == own_cell) continue;
                 if (!scan(cell, origin)) return;
               }
+              if (!visit_held()) return;
             }
     visit_held();
   }
@@ -476,6 +489,7 @@ struct Pending {
     trial.push_back(t);
   }
   void clear() {
+    if (index.empty()) return;  // (a query's usual case: resize is 15 vectors' worth)
     batch.resize(0);
     index.clear();
     trial.clear();
@@ -740,7 +754,7 @@ std::int64_t prefilter_trial(const Impl& s, const TrialSide& t, const NearSearch
         return true;
       },
       part);
-  if (found != MovingScene::none) pending.truncate(first_pending);
+  if (found != MovingScene::none && pending.size() > first_pending) pending.truncate(first_pending);
   return found;
 }
 

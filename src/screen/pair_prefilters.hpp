@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #include "pwcontact/reference.hpp"
@@ -115,15 +116,101 @@ inline constexpr double certificate_floor = 0x1p-500;
 // bounds too wide to decide anything worth the evaluations.
 inline constexpr double certificate_growth_cap = 0x1p40;
 
-// The factors of Q = L D L^T when they are usable by the certificates: every
-// pivot at least certificate_floor and the growth at most the cap (0
-// otherwise, else the growth).
-inline double usable_growth(const detail::Ldlt3<double>& f) {
-  if (!(f.d0 >= certificate_floor && f.d1 >= certificate_floor && f.d2 >= certificate_floor))
-    return 0;
-  const double growth = detail::element_growth(f);
-  return growth <= certificate_growth_cap ? growth : 0;
+namespace certificate {
+
+// Q = L D L^T with the reciprocal pivots kept, and one evaluation at lambda:
+// the kernels' arithmetic (simd_math.hpp's factor, backward and evaluate,
+// which multiply by 1/d_i where the reference path divides by d_i) in
+// scalars, three divisions per factorisation and none elsewhere: the
+// certificates' share of a query is mostly divisions.
+struct Factors {
+  double d0, d1, d2, inv_d0, inv_d1, inv_d2, l10, l20, l21;
+  explicit Factors(const double a[6]) {
+    d0 = a[0];
+    inv_d0 = 1 / d0;
+    l10 = a[1] * inv_d0;
+    l20 = a[2] * inv_d0;
+    d1 = a[3] - l10 * a[1];
+    inv_d1 = 1 / d1;
+    const double t = a[4] - l20 * a[1];
+    l21 = t * inv_d1;
+    d2 = a[5] - l20 * a[2] - l21 * t;
+    inv_d2 = 1 / d2;
+  }
+  // y = L^-1 b
+  void forward(const double b[3], double y[3]) const {
+    y[0] = b[0];
+    y[1] = b[1] - l10 * y[0];
+    y[2] = b[2] - l20 * y[0] - l21 * y[1];
+  }
+  // sum y_i^2 / d_i = b^T Q^-1 b for y = L^-1 b
+  double inverse_form_of(const double y[3]) const {
+    return y[0] * y[0] * inv_d0 + y[1] * y[1] * inv_d1 + y[2] * y[2] * inv_d2;
+  }
+  // The element growth of Q (eq. 40) when the factors are usable by the
+  // certificates: every pivot at least certificate_floor and the growth at
+  // most the cap; 0 otherwise. The growth is the largest ratio of the
+  // magnitudes that cancel in a pivot to the pivot, taken from the factors
+  // alone (q3 + |l10 q1| = d1 + 2 l10^2 d0, and q5 + |l20 q2| + l21^2 d1 =
+  // d2 + 2 l20^2 d0 + 2 l21^2 d1, for a positive definite Q; the kernels'
+  // growth() in simd_math.hpp takes it from the form's entries). The
+  // relative rounding errors of the pivots, and with them of r^T Q^-1 r and
+  // f, are O(eps growth).
+  double usable_growth() const {
+    if (!(d0 >= certificate_floor && d1 >= certificate_floor && d2 >= certificate_floor)) return 0;
+    const double g1 = 1 + 2 * l10 * l10 * d0 * inv_d1;
+    const double g2 = 1 + 2 * (l20 * l20 * d0 + l21 * l21 * d1) * inv_d2;
+    const double growth = g1 > g2 ? g1 : g2;
+    return growth <= certificate_growth_cap ? growth : 0;
+  }
+};
+
+// f, g = -f' and g' at lambda (eqs. 11, 13 and 16), with Q(lambda)'s growth
+// (0: not usable).
+struct Evaluation {
+  double f, g, dg, growth;
+};
+
+inline Evaluation evaluate(const double r[3], const double q1[6], const double q2[6],
+                           double lambda) {
+  const double mu = 1 - lambda;
+  double q[6];
+  for (int k = 0; k < 6; ++k) q[k] = mu * q1[k] + lambda * q2[k];  // eq. 10
+  const Factors l(q);
+  Evaluation e;
+  e.growth = l.usable_growth();
+  double y[3], s[3];
+  l.forward(r, y);
+  s[2] = y[2] * l.inv_d2;
+  s[1] = y[1] * l.inv_d1 - l.l21 * s[2];
+  s[0] = y[0] * l.inv_d0 - l.l10 * s[1] - l.l20 * s[2];
+  double a[3], b[3], ya[3], yb[3];
+  detail::symmetric_times(q1, s, a);
+  detail::symmetric_times(q2, s, b);
+  l.forward(a, ya);
+  l.forward(b, yb);
+  e.f = lambda * mu * l.inverse_form_of(y);
+  e.g = lambda * lambda * detail::dot3(s, b) - mu * mu * detail::dot3(s, a);
+  e.dg = 2 * (ya[0] * yb[0] * l.inv_d0 + ya[1] * yb[1] * l.inv_d1 + ya[2] * yb[2] * l.inv_d2);
+  return e;
 }
+
+// The power of two t with t^2 m in [1, 4), for a positive normal m, from m's
+// exponent bits (m = 1.f 2^E: t = 2^-floor(E/2)); 0 for a subnormal m.
+inline double scale_to_unit(double m) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &m, sizeof bits);
+  const int biased = int(bits >> 52) & 0x7ff;
+  if (biased == 0) return 0;
+  const int e = biased - 1023;
+  const int k = -(e >= 0 ? e / 2 : -((1 - e) / 2));  // -floor(e / 2)
+  const std::uint64_t t_bits = std::uint64_t(k + 1023) << 52;
+  double t;
+  std::memcpy(&t, &t_bits, sizeof t);
+  return t;
+}
+
+}  // namespace certificate
 
 // Whether mu^2 < cutoff2 for the pair (r = c2 - c1, forms q1, q2), decided
 // by the bounds the overlap kernels keep, each with the margin of eq. 40:
@@ -147,41 +234,46 @@ inline Certified certify_overlap(const double r12[3], const double q1_given[6],
       std::max({q1_given[0], q1_given[3], q1_given[5], q2_given[0], q2_given[3], q2_given[5]});
   if (!(largest > 0) || !(largest < std::numeric_limits<double>::infinity()))
     return Certified::undecided;
-  // sqrt(largest) = m 2^e with m in [1/2, 1): t = 2^(1 - e), t^2 largest in [1, 4).
-  int e = 0;
-  std::frexp(std::sqrt(largest), &e);
-  // (The forms times t twice: t^2 itself overflows for forms below ~2^-1024.)
-  const double t = std::ldexp(1.0, 1 - e);
+  double t = certificate::scale_to_unit(largest);
+  if (t == 0) {
+    // A subnormal largest entry: sqrt(largest) = m 2^e with m in [1/2, 1),
+    // t = 2^(1 - e) (beyond 2^511: t^2 itself would overflow, so the forms
+    // are multiplied by t twice below).
+    int e = 0;
+    std::frexp(std::sqrt(largest), &e);
+    t = std::ldexp(1.0, 1 - e);
+  }
   double r[3], q1[6], q2[6];
   for (int k = 0; k < 3; ++k) r[k] = r12[k] * t;
   for (int k = 0; k < 6; ++k) q1[k] = q1_given[k] * t * t, q2[k] = q2_given[k] * t * t;
-  const detail::Ldlt3<double> f1(q1), f2(q2);
-  const double growth1 = usable_growth(f1), growth2 = usable_growth(f2);
+  const certificate::Factors f1(q1), f2(q2);
+  const double growth1 = f1.usable_growth(), growth2 = f2.usable_growth();
   if (!(growth1 > 0 && growth2 > 0)) return Certified::undecided;
   // sigma_i = r^T Qi^-1 r = f'(0) and -f'(1) (eq. 16).
-  const double sigma1 = detail::inverse_quadratic_form(f1, r);
-  const double sigma2 = detail::inverse_quadratic_form(f2, r);
+  double y[3];
+  f1.forward(r, y);
+  const double sigma1 = f1.inverse_form_of(y);
+  f2.forward(r, y);
+  const double sigma2 = f2.inverse_form_of(y);
   auto in_range = [](double x) { return x >= certificate_floor && x <= 1 / certificate_floor; };
   if (!in_range(sigma1) || !in_range(sigma2)) return Certified::undecided;
   double margin = margin_per_growth * std::max(growth1, growth2);
   // Eq. 31: mu^2 <= sigma1 sigma2 / (sqrt(sigma1) + sqrt(sigma2))^2.
   const double root1 = std::sqrt(sigma1), root2 = std::sqrt(sigma2);
-  const double extents = root1 + root2;
-  double upper = sigma1 / extents * (sigma2 / extents) * (1 + margin);
+  const double inv_extents = 1 / (root1 + root2);
+  double upper = sigma1 * inv_extents * (sigma2 * inv_extents) * (1 + margin);
   if (upper < cutoff2) return Certified::overlapping;
   double lower = 0;
   // The bracket [lo, hi] of the maximiser, with f and g = -f' at its ends
   // (f = 0 at both, g(0) = -sigma1, g(1) = sigma2), and the guess (eq. 31).
   double lo = 0, hi = 1, f_lo = 0, g_lo = -sigma1, f_hi = 0, g_hi = sigma2;
-  double lambda = root2 / extents;
+  double lambda = root2 * inv_extents;
   for (int n = 0; n < evaluations; ++n) {
-    detail::Ldlt3<double> factors;
-    const detail::Residual<double> at = detail::evaluate(r, q1, q2, lambda, &factors);
-    const double growth = usable_growth(factors);
-    if (!(growth > 0) || !in_range(at.f) || !std::isfinite(at.g) || !(at.dg > 0) ||
+    const certificate::Evaluation at = certificate::evaluate(r, q1, q2, lambda);
+    if (!(at.growth > 0) || !in_range(at.f) || !std::isfinite(at.g) || !(at.dg > 0) ||
         !std::isfinite(at.dg))
       return Certified::undecided;
-    margin = std::max(margin, margin_per_growth * growth);
+    margin = std::max(margin, margin_per_growth * at.growth);
     lower = std::max(lower, at.f * (1 - margin));  // eq. 27
     if (lower >= cutoff2) return Certified::apart;
     if (at.g > 0) {
