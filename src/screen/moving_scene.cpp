@@ -319,13 +319,14 @@ struct MovingScene::Impl {
     return {block, block + capacity, block + 2 * capacity, block + 3 * capacity};
   }
 
-  // Where a query looks: the trial's wrapped centre, the runs of cells the
-  // cube of the largest reach about it touches (two or three along each
-  // axis, not always the 3 x 3 x 3 about its cell) and its own cell. Made
-  // once per trial and cutoff, for both parts of a search.
+  // Where a query looks: the trial's wrapped centre (and in cell space), the
+  // largest reach about it, its own cell, and whether the reach spans a
+  // periodic axis (then every member is taken by the minimum image). Made
+  // once per trial and cutoff, for both parts of a search; the runs of cells
+  // about the own one are made only when those cells are searched.
   struct NearSearch {
-    double w[3];
-    screen::CellRuns runs[3];
+    double w[3], u[3];
+    double reach;
     bool nearest_image;
     double trial_reach, scale;
     std::size_t own_cell;
@@ -334,13 +335,23 @@ struct MovingScene::Impl {
   NearSearch near_search(const Particle& trial, double cutoff) const {
     NearSearch q;
     const screen::BoxGeometry& geometry = lists.geometry;
-    double u[3];
+    double* u = q.u;
     geometry.wrap(trial.centre().data(), q.w);
     lists.cell_space(q.w, u);
     const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
+    q.reach = reach;
     const screen::ClassGrid& g = grid();
-    for (int k = 0; k < 3; ++k) screen::runs_within(lists, g, k, u[k], reach, q.runs[k]);
-    q.nearest_image = q.runs[0].nearest_image || q.runs[1].nearest_image || q.runs[2].nearest_image;
+    // A run spans a periodic axis only where the reach covers nearly all of
+    // its cells (runs_within: floor((u + reach) / side) - floor((u - reach) /
+    // side) + 1 >= cells, the left side at most 2 reach / side + 2): then
+    // runs_within decides.
+    q.nearest_image = false;
+    for (int k = 0; k < 3; ++k)
+      if (geometry.periodic[k] && !(2 * reach * g.inverse_side[k] + 3 < double(g.cells[k]))) {
+        screen::CellRuns runs;
+        screen::runs_within(lists, g, k, u[k], reach, runs);
+        q.nearest_image = q.nearest_image || runs.nearest_image;
+      }
     q.trial_reach = cutoff * trial.bounding_radius();
     q.scale = cutoff;
     const std::size_t ny = std::size_t(g.cells[1]), nz = std::size_t(g.cells[2]);
@@ -361,7 +372,6 @@ struct MovingScene::Impl {
                      Cells part = Cells::all) const {
     if (store.size() == 0) return;
     const screen::BoxGeometry& geometry = lists.geometry;
-    const screen::CellRuns* runs = search.runs;
     const bool nearest_image = search.nearest_image;
     const double trial_reach = search.trial_reach, scale = search.scale;
     const kernels::BoundingKernel meet_of = bounding_spheres_meet;
@@ -427,8 +437,11 @@ struct MovingScene::Impl {
     // image shift (made here once: made inside the cells' loops, their
     // stores and reloads stalled a query for about 80 ns at 0.5).
     const std::size_t own_cell = search.own_cell;
+    screen::CellRuns runs[3];
     double origins[2][2][2][3];
     auto prepare_others = [&]() {
+      for (int k = 0; k < 3; ++k)
+        screen::runs_within(lists, g, k, search.u[k], search.reach, runs[k]);
       for (int ra = 0; ra < runs[0].count; ++ra)
         for (int rb = 0; rb < runs[1].count; ++rb)
           for (int rc = 0; rc < runs[2].count; ++rc) {
