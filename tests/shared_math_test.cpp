@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "pwcontact/reference.hpp"
+#include "screen/pair_prefilters.hpp"
 #include "test_support.hpp"
 
 namespace pwtest {
@@ -258,6 +259,47 @@ void expect_scalings_agree(const std::vector<Pair<double>>& pairs) {
 
 TEST(SharedMath, PowerOfTwoScalingsOfKernelsAndReferenceAgreeBitForBit) {
   expect_scalings_agree(pairs_at_scales(normal_scales));
+}
+
+// The moving scene's scalar certificates (screen::certify_overlap) take the
+// kernels' arithmetic, reciprocal pivots included: their factorisation,
+// evaluation and scaling are a third copy, held to the kernels' bit for bit
+// on any positive definite forms (no power-of-two pivots needed here).
+TEST(SharedMath, TheCertificatesFactorEvaluateAndScaleAsTheKernelsDoBitForBit) {
+  namespace certificate = pwcontact::screen::certificate;
+  const std::vector<Pair<double>> pairs = pairs_at_scales(normal_scales);
+  std::mt19937_64 engine(45);
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const Pair<double>& p = pairs[i];
+    const std::string what = "pair " + std::to_string(i);
+    kernel::PairLanes<B> lanes;
+    broadcast(p.r12.data(), 3, lanes.r);
+    broadcast(p.q1.data(), 6, lanes.q1);
+    broadcast(p.q2.data(), 6, lanes.q2);
+    const double t = kernel::nondimensionalise(lanes, true).get(0);
+    const double largest = std::max({p.q1[0], p.q1[3], p.q1[5], p.q2[0], p.q2[3], p.q2[5]});
+    expect_same_bits(t, certificate::scale_to_unit(largest), what + ", t");
+    double r[3], q1[6], q2[6];
+    for (int k = 0; k < 3; ++k) r[k] = lanes.r[k].get(0);
+    for (int k = 0; k < 6; ++k) q1[k] = lanes.q1[k].get(0), q2[k] = lanes.q2[k].get(0);
+    const kernel::Ldlt<B> f = kernel::factor(lanes.q1);
+    const certificate::Factors c(q1);
+    const double kernel_values[9] = {f.d0.get(0),     f.d1.get(0),     f.d2.get(0),
+                                     f.inv_d0.get(0), f.inv_d1.get(0), f.inv_d2.get(0),
+                                     f.l10.get(0),    f.l20.get(0),    f.l21.get(0)};
+    const double certificate_values[9] = {c.d0,     c.d1,  c.d2,  c.inv_d0, c.inv_d1,
+                                          c.inv_d2, c.l10, c.l20, c.l21};
+    for (int k = 0; k < 9; ++k)
+      expect_same_bits(kernel_values[k], certificate_values[k],
+                       what + ", factor entry " + std::to_string(k));
+    const double lambda = uniform(engine, 0.02, 0.98);
+    const kernel::Evaluation<B> e = kernel::evaluate(lanes, broadcast(lambda));
+    const certificate::Evaluation at = certificate::evaluate(r, q1, q2, lambda);
+    expect_same_bits(e.f.get(0), at.f, what + ", f");
+    expect_same_bits(e.g.get(0), at.g, what + ", g");
+    expect_same_bits(e.dg.get(0), at.dg, what + ", g'");
+    if (HasFailure()) return;
+  }
 }
 
 // Not so where Q's largest diagonal entry is subnormal: the kernels' t is

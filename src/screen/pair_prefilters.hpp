@@ -121,7 +121,8 @@ namespace certificate {
 // Q = L D L^T with the reciprocal pivots kept, and one evaluation at lambda:
 // the kernels' arithmetic (simd_math.hpp's factor, backward and evaluate,
 // which multiply by 1/d_i where the reference path divides by d_i) in
-// scalars, three divisions per factorisation and none elsewhere: the
+// scalars (tests/shared_math_test.cpp holds the copies together bit for
+// bit), three divisions per factorisation and none in the solves: the
 // certificates' share of a query is mostly divisions.
 struct Factors {
   double d0, d1, d2, inv_d0, inv_d1, inv_d2, l10, l20, l21;
