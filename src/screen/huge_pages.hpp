@@ -40,4 +40,15 @@ void reserve_in_huge_pages(Vector& v, std::size_t n) {
   advise_huge_pages(v.data(), v.capacity() * sizeof(typename Vector::value_type));
 }
 
+// v.assign(n, value) in new storage advised as above when v's own is too
+// small: v is emptied first, so that growing it copies none of the old
+// elements the assignment overwrites (a moving scene's rebuild: up to
+// ~0.6 GB).
+template <class Vector>
+void assign_in_huge_pages(Vector& v, std::size_t n, const typename Vector::value_type& value) {
+  v.clear();
+  reserve_in_huge_pages(v, n);
+  v.assign(n, value);
+}
+
 }  // namespace pwcontact::screen

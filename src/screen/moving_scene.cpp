@@ -253,23 +253,11 @@ struct MovingScene::Impl {
     // In huge pages where the kernel offers them, as the screen's arrays: a
     // query reads a few cache lines of each of up to ~15 cells, each cell's
     // slots kilobytes apart (measured 3 % faster at 0.3).
-    // (Emptied first: a reserve that grows an array would copy its old
-    // contents, up to ~0.6 GB, that the assignments below overwrite.)
-    count.clear();
-    coarse.clear();
-    details.clear();
-    members.clear();
-    where.clear();
-    screen::reserve_in_huge_pages(coarse, cell_total * capacity * 4);
-    screen::reserve_in_huge_pages(details, cell_total * capacity);
-    screen::reserve_in_huge_pages(members, cell_total * capacity);
-    screen::reserve_in_huge_pages(count, cell_total);
-    screen::reserve_in_huge_pages(where, n);
-    count.assign(cell_total, 0);
-    coarse.assign(cell_total * capacity * 4, 0.0);
-    details.assign(cell_total * capacity, Detail{});
-    members.assign(cell_total * capacity, 0);
-    where.assign(n, 0);
+    screen::assign_in_huge_pages(count, cell_total, 0u);
+    screen::assign_in_huge_pages(coarse, cell_total * capacity * 4, 0.0);
+    screen::assign_in_huge_pages(details, cell_total * capacity, Detail{});
+    screen::assign_in_huge_pages(members, cell_total * capacity, 0u);
+    screen::assign_in_huge_pages(where, n, std::uint64_t(0));
     for (std::size_t i = 0; i < n; ++i) occupy(i, cell[i]);
     stamp.assign(cell_total, 0);
     generation = 0;

@@ -144,6 +144,12 @@ struct Factors {
     y[1] = b[1] - l10 * y[0];
     y[2] = b[2] - l20 * y[0] - l21 * y[1];
   }
+  // x = L^-T D^-1 y, i.e. x = Q^-1 b for y = L^-1 b
+  void backward(const double y[3], double x[3]) const {
+    x[2] = y[2] * inv_d2;
+    x[1] = y[1] * inv_d1 - l21 * x[2];
+    x[0] = y[0] * inv_d0 - l10 * x[1] - l20 * x[2];
+  }
   // sum y_i^2 / d_i = b^T Q^-1 b for y = L^-1 b
   double inverse_form_of(const double y[3]) const {
     return y[0] * y[0] * inv_d0 + y[1] * y[1] * inv_d1 + y[2] * y[2] * inv_d2;
@@ -182,9 +188,7 @@ inline Evaluation evaluate(const double r[3], const double q1[6], const double q
   e.growth = l.usable_growth();
   double y[3], s[3];
   l.forward(r, y);
-  s[2] = y[2] * l.inv_d2;
-  s[1] = y[1] * l.inv_d1 - l.l21 * s[2];
-  s[0] = y[0] * l.inv_d0 - l.l10 * s[1] - l.l20 * s[2];
+  l.backward(y, s);
   double a[3], b[3], ya[3], yb[3];
   detail::symmetric_times(q1, s, a);
   detail::symmetric_times(q2, s, b);
