@@ -295,6 +295,15 @@ inline void runs_within(const CellLists& lists, const ClassGrid& grid, int k, do
     add(lo, hi, 0);
   }
 }
+// Whether the runs within `reach` along periodic axis k may span the axis
+// (runs_within's nearest_image), from the reach alone: the runs cover
+// floor((u + reach) / side) - floor((u - reach) / side) + 1 cells, at most
+// 2 reach / side + 2, so where that is below the axis's cells less one they
+// cannot. Where this is true, runs_within decides.
+inline bool runs_may_span(const CellLists& lists, const ClassGrid& grid, int k, double reach) {
+  return lists.geometry.periodic[k] &&
+         !(2 * reach * grid.inverse_side[k] + 3 < double(grid.cells[k]));
+}
 inline CellRuns runs_within(const CellLists& lists, const ClassGrid& grid, int k, double u,
                             double reach) {
   CellRuns runs;

@@ -336,13 +336,11 @@ struct MovingScene::Impl {
     const double reach = cutoff * (trial.bounding_radius() + grid_radius) + 4 * lists.slack;
     q.reach = reach;
     const screen::ClassGrid& g = grid();
-    // A run spans a periodic axis only where the reach covers nearly all of
-    // its cells (runs_within: floor((u + reach) / side) - floor((u - reach) /
-    // side) + 1 >= cells, the left side at most 2 reach / side + 2): then
-    // runs_within decides.
+    // Whether a run spans a periodic axis, from the reach first (the runs
+    // themselves are made only when the other cells are searched).
     q.nearest_image = false;
     for (int k = 0; k < 3; ++k)
-      if (geometry.periodic[k] && !(2 * reach * g.inverse_side[k] + 3 < double(g.cells[k]))) {
+      if (screen::runs_may_span(lists, g, k, reach)) {
         screen::CellRuns runs;
         screen::runs_within(lists, g, k, u[k], reach, runs);
         q.nearest_image = q.nearest_image || runs.nearest_image;
