@@ -36,6 +36,7 @@ __all__ = [
     "MovingScene",
     "OverlapResult",
     "ScreenResult",
+    "SkinNeighborList",
     "Status",
     "contact_function",
     "overlap",
@@ -465,6 +466,61 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     return ScreenResult(raw, positions, b)
 
 
+class SkinNeighborList:
+    """The pairs with mu < cutoff, step after step (anisotropic molecular
+    dynamics: Gay-Berne, RE-squared), from a list of the pairs with
+    mu < cutoff + skin that is kept while no particle has moved or turned
+    beyond what the skin allows, and rebuilt (a screen) otherwise.
+
+    The criterion is safe whatever the shapes: since the last rebuild
+    particle i has moved by d_i and its form changed by |Q_i' - Q_i|_F; with
+    rho_i its inscribed radius, m_i = (d_i + cutoff |Q_i' - Q_i|_F / (2 rho_i))
+    / rho_i, and the list is kept while every m_i <= skin (README, "A scene
+    that moves"). A kept list's pairs are solved again from the lambda each
+    had at the last step (warm_start), in about half the evaluations.
+
+    cutoff >= 1 and skin > 0, both finite (ValueError otherwise); threads:
+    0 for all. update() takes the particles as screen() does and returns a
+    ScreenResult with mu2 (pairs i < j, sorted), whose report says whether
+    the list was rebuilt, the largest m_i since the last rebuild, the pairs
+    listed, solved and found, the evaluations per solved pair and the
+    seconds taken. A change of the particle count or of the box rebuilds.
+    """
+
+    def __init__(self, cutoff: float = 1.5, skin: float = 0.2, *, warm_start: bool = True,
+                 threads: int = 0):
+        self._list = _core.SkinNeighborList(float(cutoff), float(skin), bool(warm_start), int(threads))
+        self.cutoff = float(cutoff)
+        self.skin = float(skin)
+
+    def update(self, positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None,
+               typeid=None, box=None, **ignored) -> ScreenResult:
+        """The pairs with mu < cutoff of the particles as they are now."""
+        for key in ignored:
+            if key not in ("type_names", "frame", "frames", "id"):
+                raise TypeError(f"update() got an unexpected keyword argument {key!r}")
+        if isinstance(semi_axes, tuple) and len(semi_axes) == 2:
+            if type_semi_axes is not None or typeid is not None:
+                raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
+            type_semi_axes, typeid = semi_axes
+            semi_axes = None
+        b = _as_box(box)
+        positions = np.asarray(positions, dtype=float)
+        if b is not None and b.is2D:
+            _check_in_plane(positions, orientations)
+        raw = self._list.update(positions, orientations, semi_axes, q, type_semi_axes, typeid,
+                                None if b is None else b._core())
+        return ScreenResult(raw, positions, b)
+
+    @property
+    def rebuilds(self) -> int:
+        """How many updates rebuilt the list (the first one included)."""
+        return self._list.rebuilds
+
+    def __repr__(self) -> str:
+        return f"SkinNeighborList(cutoff={self.cutoff!r}, skin={self.skin!r}, rebuilds={self.rebuilds})"
+
+
 def _gsd_frame(trajectory, frame: int):
     n = len(trajectory)
     if n == 0:
@@ -615,6 +671,19 @@ class MovingScene:
         exclude (M,) (-1: none). Returns (M,) int64."""
         return self._scene.overlaps_many(np.asarray(positions, dtype=float), orientations, semi_axes, q, exclude,
                                          int(threads))
+
+    def move_many(self, indices, positions, orientations=None, semi_axes=None, *, q=None,
+                  threads: int = 0) -> None:
+        """Moves particles indices[k] to rows k of positions, with shapes by
+        semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,),
+        as move() one after another would. Moves whose old and new cells are
+        distinct from those of every other move (one per domain of a
+        checkerboard sweep) run on `threads` threads (0: all); otherwise in
+        order, in one thread. Every move is checked first: IndexError for an
+        index that does not exist, ValueError for a shape the store refuses,
+        each naming the move, and the scene unchanged."""
+        self._scene.move_many(indices, np.asarray(positions, dtype=float), orientations, semi_axes, q,
+                              int(threads))
 
     def insert(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> int:
         """Stores a particle; returns its index (len(scene) - 1)."""

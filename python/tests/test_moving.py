@@ -84,3 +84,119 @@ def test_many_trials_at_once_answer_as_the_single_queries():
         scene.overlaps_many(trial_positions, bad, [0.25, 0.25, 0.8])
     with pytest.raises(ValueError, match="exclude must have shape"):
         scene.overlaps_many(trial_positions, trial_orientations, [0.25, 0.25, 0.8], exclude=which[:5])
+
+
+def test_move_many_moves_as_single_moves_do():
+    rng = np.random.default_rng(13)
+    n = 500
+    box = pw.Box.cube(12)
+    positions = rng.uniform(0, 12, (n, 3))
+    orientations = rng.normal(size=(n, 4))
+    axes = [0.2, 0.2, 0.5]
+    for threads in (1, 2):
+        together = pw.MovingScene(positions, orientations, axes, box=box)
+        one_by_one = pw.MovingScene(positions, orientations, axes, box=box)
+        # Moves of particles far apart (independent cells) and a few that are
+        # not (the same particle's neighbours): both kinds must come out as
+        # the moves one after another.
+        which = rng.choice(n, 40, replace=False)
+        new_positions = positions[which] + rng.uniform(-0.3, 0.3, (40, 3))
+        new_orientations = rng.normal(size=(40, 4))
+        together.move_many(which, new_positions, new_orientations, axes, threads=threads)
+        for k in range(40):
+            one_by_one.move(int(which[k]), new_positions[k], new_orientations[k], axes)
+        assert np.array_equal(together.positions, one_by_one.positions)
+        assert np.array_equal(together.q, one_by_one.q)
+        # The scene answers for the moved particles where they now are.
+        for k in range(0, 40, 7):
+            i = int(which[k])
+            assert (together.overlaps(new_positions[k], new_orientations[k], axes, exclude=i)
+                    == one_by_one.overlaps(new_positions[k], new_orientations[k], axes, exclude=i))
+
+
+def test_move_many_checks_every_move_first():
+    scene = pw.MovingScene(np.array([[0.0, 0, 0], [3.0, 0, 0]]), None, [0.5, 0.5, 0.5], box=None)
+    before = scene.positions.copy()
+    moves = np.array([[0.5, 0, 0], [3.5, 0, 0]])
+    for bad in ([0, 2], [0, -1]):
+        with pytest.raises(IndexError, match="particle"):
+            scene.move_many(bad, moves, None, [0.5, 0.5, 0.5])
+    with pytest.raises(ValueError, match="move 1"):
+        scene.move_many([0, 1], np.array([[0.5, 0, 0], [np.nan, 0, 0]]), None, [0.5, 0.5, 0.5])
+    with pytest.raises(ValueError, match="shape"):
+        scene.move_many([0], moves, None, [0.5, 0.5, 0.5])
+    assert np.array_equal(scene.positions, before)
+    scene.move_many([0, 1], moves, None, [0.5, 0.5, 0.5])
+    assert np.array_equal(scene.positions, moves)
+
+
+def brute_force_pairs(positions, q, box, cutoff):
+    """{(i, j): mu2} of every pair i < j with mu2 < cutoff**2, by
+    contact_function on all N (N - 1) / 2 pairs (minimum images)."""
+    n = len(positions)
+    i, j = np.triu_indices(n, 1)
+    d = box.wrap_vectors(positions[j] - positions[i])
+    r = pw.contact_function(d, q[i], q[j], outputs=("mu2",))
+    assert np.all(pw.is_valid(r.status))
+    keep = r.mu2 < cutoff**2
+    return {(int(a), int(b)): float(m) for a, b, m in zip(i[keep], j[keep], r.mu2[keep])}, r.mu2, i, j
+
+
+def test_the_skin_list_gives_every_step_the_pairs_brute_force_finds():
+    rng = np.random.default_rng(14)
+    n = 240
+    box = pw.Box(8, 8, 8, 0.1, 0.0, -0.2)
+    axes = np.column_stack([rng.uniform(0.2, 0.4, n), rng.uniform(0.2, 0.4, n), rng.uniform(0.4, 0.9, n)])
+    positions = rng.uniform(0, 8, (n, 3))
+    orientations = rng.normal(size=(n, 4))
+    orientations /= np.linalg.norm(orientations, axis=1)[:, None]
+    cutoff = 1.3
+    nl = pw.SkinNeighborList(cutoff, 0.2, threads=2)
+    kept = rebuilt = 0
+    for step in range(12):
+        if step == 8:
+            positions[0] += 1.5  # far beyond the skin: a rebuild
+        result = nl.update(positions, orientations, axes, box=box)
+        q = pw.quadratic_form(axes, orientations)
+        expected, mu2_all, i_all, j_all = brute_force_pairs(positions, q, box, cutoff)
+        found = {(int(a), int(b)): float(m) for (a, b), m in zip(result.pairs, result.mu2)}
+        # The set of pairs: the same, but for pairs within 1e-9 of the cutoff,
+        # where the two solves' last bits may fall either side (none expected).
+        near = set((int(a), int(b)) for a, b, m in zip(i_all, j_all, mu2_all)
+                   if abs(m - cutoff**2) < 1e-9 * cutoff**2)
+        assert set(found) - near == set(expected) - near
+        # mu^2 of each pair to the batch path's accuracy (<= 1e-13 relative on
+        # random pairs, README; 1e-11 leaves room for a warm start's last step).
+        for key, m in found.items():
+            if key in expected:
+                assert abs(m - expected[key]) <= 1e-11 * expected[key], key
+        assert np.all(result.pairs[:, 0] < result.pairs[:, 1])
+        report = result.report
+        assert report["found"] == len(found) and report["listed"] >= report["found"]
+        if report["rebuilt"]:
+            rebuilt += 1
+        else:
+            kept += 1
+            assert report["largest_move"] <= 0.2
+        if step == 8:
+            assert report["rebuilt"]
+        # A slow step: moves and turns well inside the skin most of the time.
+        positions += rng.normal(scale=0.0005, size=(n, 3))
+        turn = rng.normal(scale=0.0005, size=(n, 4))
+        orientations = orientations + turn
+        orientations /= np.linalg.norm(orientations, axis=1)[:, None]
+    assert kept >= 6 and rebuilt >= 2 and nl.rebuilds == rebuilt
+
+
+def test_the_skin_list_refuses_bad_input():
+    with pytest.raises(ValueError, match="cutoff"):
+        pw.SkinNeighborList(0.5, 0.1)
+    with pytest.raises(ValueError, match="skin"):
+        pw.SkinNeighborList(1.2, 0.0)
+    with pytest.raises(ValueError, match="threads"):
+        pw.SkinNeighborList(1.2, 0.1, threads=-1)
+    nl = pw.SkinNeighborList(1.2, 0.1)
+    with pytest.raises(ValueError):
+        nl.update(np.array([[0.0, 0, 0], [np.nan, 0, 0]]), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5))
+    result = nl.update(np.array([[0.0, 0, 0], [1.1, 0, 0]]), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5))
+    assert result.pairs.tolist() == [[0, 1]] and abs(result.mu2[0] - 1.1**2) < 1e-12

@@ -21,6 +21,8 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <shared_mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -483,8 +485,9 @@ pwcontact::ParticleStore make_store(const py::object& positions_in,
   return store;
 }
 
-py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool with_mu2,
-                  const pwcontact::ScreenReport& report) {
+// The pairs as arrays: (M, 2) rows, per-particle counts and offsets, mu2
+// (or None).
+py::dict pair_arrays(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool with_mu2) {
   const std::size_t m = pairs.size();
   py::array_t<std::uint32_t> out({py::ssize_t(m), py::ssize_t(2)});
   py::array_t<std::uint32_t> counts{py::ssize_t(n)};
@@ -520,6 +523,12 @@ py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool wit
     d["mu2"] = mu2;
   else
     d["mu2"] = py::none();
+  return d;
+}
+
+py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool with_mu2,
+                  const pwcontact::ScreenReport& report) {
+  py::dict d = pair_arrays(pairs, n, with_mu2);
   py::dict r;
   r["candidate_pairs"] = report.candidate_pairs;
   r["solved"] = report.solved;
@@ -665,7 +674,11 @@ py::dict scene_dict(const pwcontact::Scene& s) {
   return d;
 }
 
-// The persistent scene of trial moves (moving_scene.hpp).
+// The persistent scene of trial moves (moving_scene.hpp). Queries run
+// without the GIL, so that another Python thread may call in meanwhile: they
+// share `lock`, and the calls that change the scene hold it alone (each
+// takes it after releasing the GIL, and lets it go before taking the GIL
+// back, so that neither waits on the other while holding both).
 class PyMovingScene {
  public:
   PyMovingScene(const py::object& positions, const py::object& orientations,
@@ -673,8 +686,6 @@ class PyMovingScene {
                 const py::object& type_id, const py::object& box)
       : scene_(make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, 1),
                make_box(box)) {}
-
-  std::size_t size() const { return scene_.size(); }
 
   pwcontact::ParticleStore::Particle trial(const py::object& position,
                                            const py::object& orientation,
@@ -698,7 +709,8 @@ class PyMovingScene {
   std::vector<pwcontact::ParticleStore::Particle> trials(const py::object& positions_in,
                                                          const py::object& orientations_in,
                                                          const py::object& semi_axes_in,
-                                                         const py::object& q_in) const {
+                                                         const py::object& q_in,
+                                                         const char* what = "trial") const {
     const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
     const std::size_t m = positions.broadcast ? 1 : positions.rows;
     const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none());
@@ -713,7 +725,7 @@ class PyMovingScene {
     std::vector<pwcontact::ParticleStore::Particle> out;
     out.reserve(m);
     for (std::size_t k = 0; k < m; ++k) {
-      const std::string who = "trial " + std::to_string(k);
+      const std::string who = what + (" " + std::to_string(k));
       const std::array<double, 3> c = {positions.at(k, 0), positions.at(k, 1), positions.at(k, 2)};
       if (q_in.is_none())
         out.push_back(pwcontact::ParticleStore::particle_axes(
@@ -731,7 +743,83 @@ class PyMovingScene {
     return out;
   }
 
+  // f(scene) with the GIL released, under the shared lock (queries) or the
+  // exclusive one (changes).
+  template <class F>
+  auto query(F&& f) const {
+    py::gil_scoped_release release;
+    std::shared_lock<std::shared_mutex> hold(lock_);
+    return f(scene_);
+  }
+  // The shared lock, taken with the GIL held (for reads that build Python
+  // objects): a change holding the exclusive lock never waits for the GIL.
+  std::shared_lock<std::shared_mutex> reading() const {
+    py::gil_scoped_release release;
+    return std::shared_lock<std::shared_mutex>(lock_);
+  }
+  template <class F>
+  auto change(F&& f) {
+    py::gil_scoped_release release;
+    std::unique_lock<std::shared_mutex> hold(lock_);
+    return f(scene_);
+  }
+
   pwcontact::MovingScene scene_;
+
+ private:
+  mutable std::shared_mutex lock_;
+};
+
+// The neighbour list with a skin (neighbor_list.hpp), kept across calls of
+// update; one update at a time (another Python thread's waits), without
+// the GIL.
+class PySkinNeighborList {
+ public:
+  PySkinNeighborList(double cutoff, double skin, bool warm_start, int threads)
+      : list_(options(cutoff, skin, warm_start, threads)) {}
+
+  py::dict update(const py::object& positions, const py::object& orientations,
+                  const py::object& semi_axes, const py::object& q,
+                  const py::object& type_semi_axes, const py::object& type_id,
+                  const py::object& box) {
+    const int used = thread_count(list_.options().threads);
+    const pwcontact::ParticleStore store =
+        make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+    const pwcontact::Box b = make_box(box);
+    pwcontact::ScreenedPairs pairs;
+    pwcontact::SkinReport report;
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> hold(lock_);
+      report = list_.update(store, b, pairs);
+    }
+    py::dict d = pair_arrays(pairs, store.size(), true);
+    py::dict r;
+    r["rebuilt"] = report.rebuilt;
+    r["largest_move"] = report.largest_move;
+    r["listed"] = report.listed;
+    r["solved"] = report.solved;
+    r["found"] = report.found;
+    r["mean_evaluations"] = report.mean_evaluations;
+    r["seconds_solve"] = report.seconds_solve;
+    r["seconds"] = report.seconds_total;
+    d["report"] = r;
+    return d;
+  }
+
+  std::size_t rebuilds() const { return list_.rebuilds(); }
+
+ private:
+  static pwcontact::SkinOptions options(double cutoff, double skin, bool warm_start, int threads) {
+    pwcontact::SkinOptions o;
+    o.cutoff = cutoff;
+    o.skin = skin;
+    o.warm_start = warm_start;
+    o.threads = thread_count(threads);
+    return o;
+  }
+  pwcontact::SkinNeighborList list_;
+  std::mutex lock_;
 };
 
 // Seconds of the C++ calls the Python ones are measured against
@@ -933,34 +1021,45 @@ PYBIND11_MODULE(_pwcontact, m) {
                     const py::object&, const py::object&, const py::object&>(),
            py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"), py::arg("q"),
            py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"))
-      .def("__len__", &PyMovingScene::size)
+      .def("__len__",
+           [](const PyMovingScene& s) {
+             const auto hold = s.reading();
+             return s.scene_.size();
+           })
       .def("trial", &PyMovingScene::trial, py::arg("position"), py::arg("orientation"),
            py::arg("semi_axes"), py::arg("q"), py::arg("typeid"))
-      .def("insert", [](PyMovingScene& s,
-                        const pwcontact::ParticleStore::Particle& p) { return s.scene_.insert(p); })
-      .def("remove", [](PyMovingScene& s, std::size_t i) { return s.scene_.remove(i); })
-      .def("move", [](PyMovingScene& s, std::size_t i,
-                      const pwcontact::ParticleStore::Particle& p) { s.scene_.move(i, p); })
+      .def("insert",
+           [](PyMovingScene& s, const pwcontact::ParticleStore::Particle& p) {
+             return s.change([&](pwcontact::MovingScene& scene) { return scene.insert(p); });
+           })
+      .def("remove",
+           [](PyMovingScene& s, std::size_t i) {
+             return s.change([&](pwcontact::MovingScene& scene) { return scene.remove(i); });
+           })
+      .def("move",
+           [](PyMovingScene& s, std::size_t i, const pwcontact::ParticleStore::Particle& p) {
+             s.change([&](pwcontact::MovingScene& scene) { scene.move(i, p); });
+           })
       .def("overlaps",
            [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
               std::int64_t exclude) {
-             py::gil_scoped_release release;
-             return s.scene_.overlaps(p, exclude);
+             return s.query(
+                 [&](const pwcontact::MovingScene& scene) { return scene.overlaps(p, exclude); });
            })
       .def("overlap_count",
            [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
               std::int64_t exclude) {
-             py::gil_scoped_release release;
-             return s.scene_.overlap_count(p, exclude);
+             return s.query([&](const pwcontact::MovingScene& scene) {
+               return scene.overlap_count(p, exclude);
+             });
            })
       .def("neighbors",
            [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p, double cutoff,
               bool with_mu2, std::int64_t exclude) {
-             std::vector<pwcontact::Neighbor> found;
-             {
-               py::gil_scoped_release release;
-               found = s.scene_.neighbors(p, cutoff, with_mu2, exclude);
-             }
+             const std::vector<pwcontact::Neighbor> found =
+                 s.query([&](const pwcontact::MovingScene& scene) {
+                   return scene.neighbors(p, cutoff, with_mu2, exclude);
+                 });
              py::array_t<std::uint32_t> index{py::ssize_t(found.size())};
              py::array_t<double> mu2{py::ssize_t(found.size())};
              for (std::size_t k = 0; k < found.size(); ++k) {
@@ -988,13 +1087,56 @@ PYBIND11_MODULE(_pwcontact, m) {
              py::array_t<std::int64_t> first{py::ssize_t(m)};
              std::int64_t* first_data = first.mutable_data();
              const int used = thread_count(threads);
-             {
-               py::gil_scoped_release release;
-               s.scene_.overlaps(trials.data(), exclude_data, m, first_data, used);
-             }
+             s.query([&](const pwcontact::MovingScene& scene) {
+               scene.overlaps(trials.data(), exclude_data, m, first_data, used);
+             });
              return first;
            })
+      .def("move_many",
+           [](PyMovingScene& s, const py::object& index_in, const py::object& positions,
+              const py::object& orientations, const py::object& semi_axes, const py::object& q,
+              int threads) {
+             const std::vector<pwcontact::ParticleStore::Particle> moved =
+                 s.trials(positions, orientations, semi_axes, q, "move");
+             const std::size_t m = moved.size();
+             const auto given =
+                 py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(
+                     index_in);
+             if (!given || given.ndim() != 1 || std::size_t(given.shape(0)) != m)
+               throw py::value_error("indices must have shape (" + std::to_string(m) +
+                                     ",), one per row of positions");
+             const std::vector<std::int64_t> given_index(given.data(), given.data() + m);
+             const int used = thread_count(threads);
+             s.change([&](pwcontact::MovingScene& scene) {
+               // Checked as int64 first (a negative index would wrap as
+               // uint32); MovingScene::move_many checks every move before any.
+               std::vector<std::uint32_t> index(m);
+               for (std::size_t k = 0; k < m; ++k) {
+                 const std::int64_t i = given_index[k];
+                 if (i < 0 || std::uint64_t(i) >= std::uint64_t(scene.size()))
+                   throw std::out_of_range("move " + std::to_string(k) + ": particle " +
+                                           std::to_string(i) + " does not exist (" +
+                                           std::to_string(scene.size()) + " particles)");
+                 index[k] = std::uint32_t(i);
+               }
+               scene.move_many(index.data(), moved.data(), m, used);
+             });
+           })
       .def("positions",
-           [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), false); })
-      .def("q", [](const PyMovingScene& s) { return store_rows(s.scene_.particles(), true); });
+           [](const PyMovingScene& s) {
+             const auto hold = s.reading();
+             return store_rows(s.scene_.particles(), false);
+           })
+      .def("q", [](const PyMovingScene& s) {
+        const auto hold = s.reading();
+        return store_rows(s.scene_.particles(), true);
+      });
+
+  py::class_<PySkinNeighborList>(m, "SkinNeighborList")
+      .def(py::init<double, double, bool, int>(), py::arg("cutoff"), py::arg("skin"),
+           py::arg("warm_start"), py::arg("threads"))
+      .def("update", &PySkinNeighborList::update, py::arg("positions"), py::arg("orientations"),
+           py::arg("semi_axes"), py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"),
+           py::arg("box"))
+      .def_property_readonly("rebuilds", &PySkinNeighborList::rebuilds);
 }
