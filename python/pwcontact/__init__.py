@@ -33,6 +33,7 @@ __all__ = [
     "Box",
     "ContactResult",
     "DistributedScreenResult",
+    "HardParticleMC",
     "MovingScene",
     "OverlapResult",
     "ScreenResult",
@@ -464,6 +465,94 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                        None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads))
     return ScreenResult(raw, positions, b)
+
+
+class HardParticleMC:
+    """Hard-particle Monte Carlo in a periodic box (NVT, translation and
+    rotation moves, Metropolis for hard particles, a fixed seed) on a
+    MovingScene: the library's example of trial moves, as the command line's
+    ``pwcontact mc`` runs it. A sweep proposes one move per particle, by
+    checkerboard domains over ``threads`` threads; it never holds an overlap.
+
+    positions (N, 3), semi_axes (N, 3 | 3,), orientations (N, 4 | 4, | None:
+    identity), box: a periodic three-dimensional Box (or what Box.from_box
+    takes). The start must not overlap (a sweep keeps what it is given;
+    compress() raises RuntimeError on an overlapping state). packing: the
+    fraction compress_to_packing() reaches; translation and rotation: the
+    largest step along each axis and the largest turn (radians), scaled
+    towards 30 % acceptance after each sweep when adapt_steps.
+    """
+
+    def __init__(self, positions, orientations=None, semi_axes=None, *, box=None, packing: float = 0.5,
+                 translation: float = 0.1, rotation: float = 0.1, adapt_steps: bool = True,
+                 seed: int = 1, threads: int = 0, _core_mc=None):
+        if _core_mc is not None:
+            self._mc = _core_mc
+            return
+        if semi_axes is None:
+            raise ValueError("HardParticleMC needs semi_axes (N, 3) or (3,)")
+        b = _as_box(box)
+        if b is None or b.is2D or not b.periodic:
+            raise ValueError("HardParticleMC needs a periodic three-dimensional box")
+        self._mc = _core.HardParticleMC(np.asarray(positions, dtype=float), orientations, semi_axes, b._core(),
+                                        float(packing), float(translation), float(rotation), bool(adapt_steps),
+                                        int(seed), int(threads))
+
+    @classmethod
+    def dilute_spheroids(cls, n: int, seed: int = 1, max_aspect: float = 3.0, *, packing: float = 0.5,
+                         translation: float = 0.1, rotation: float = 0.1, adapt_steps: bool = True,
+                         threads: int = 0) -> "HardParticleMC":
+        """n spheroids (aspect ratios 1/max_aspect .. max_aspect, the volume
+        of a sphere of radius 0.5) on a dilute lattice, none overlapping: the
+        start of ``pwcontact mc``."""
+        return cls(None, _core_mc=_core.HardParticleMC.dilute_spheroids(
+            int(n), int(seed), float(max_aspect), float(packing), float(translation), float(rotation),
+            bool(adapt_steps), int(threads)))
+
+    def sweep(self) -> dict:
+        """One move proposed per particle: {proposed, accepted, left_domain
+        (rejected for leaving their domain), seconds}."""
+        return self._mc.sweep()
+
+    def compress(self) -> float:
+        """The box and centres scaled down as far as the closest pair allows
+        (never an overlap); returns the packing fraction."""
+        return self._mc.compress()
+
+    def compress_to_packing(self, max_sweeps: int = 100000, progress=None) -> None:
+        """Sweeps and compressions until the packing fraction given is
+        reached (RuntimeError after max_sweeps short of it); progress(sweeps,
+        packing, acceptance) after each sweep."""
+        self._mc.compress_to_packing(int(max_sweeps), progress)
+
+    def overlapping_pairs(self) -> int:
+        """The pairs with mu < 1, by a full screen (0 for every state a sweep
+        leaves)."""
+        return self._mc.overlapping_pairs()
+
+    def scene(self) -> dict:
+        """The state as the keyword arguments of screen (positions,
+        orientations, semi_axes, box)."""
+        raw = self._mc.state()
+        lx, ly, lz, xy, xz, yz, *_ = raw["box"]
+        return {"positions": raw["positions"], "orientations": raw["orientations"],
+                "semi_axes": raw["semi_axes"], "box": Box(lx, ly, lz, xy, xz, yz)}
+
+    @property
+    def packing(self) -> float:
+        return self._mc.numbers()["packing"]
+
+    @property
+    def translation(self) -> float:
+        return self._mc.numbers()["translation"]
+
+    @property
+    def rotation(self) -> float:
+        return self._mc.numbers()["rotation"]
+
+    @property
+    def sweeps(self) -> int:
+        return self._mc.numbers()["sweeps"]
 
 
 class SkinNeighborList:

@@ -200,3 +200,61 @@ def test_the_skin_list_refuses_bad_input():
         nl.update(np.array([[0.0, 0, 0], [np.nan, 0, 0]]), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5))
     result = nl.update(np.array([[0.0, 0, 0], [1.1, 0, 0]]), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5))
     assert result.pairs.tolist() == [[0, 1]] and abs(result.mu2[0] - 1.1**2) < 1e-12
+
+
+def min_mu2(scene):
+    """The smallest mu^2 over every pair of the state, by contact_function
+    on all N (N - 1) / 2 pairs (minimum images)."""
+    positions, box = scene["positions"], scene["box"]
+    q = pw.quadratic_form(scene["semi_axes"], scene["orientations"])
+    i, j = np.triu_indices(len(positions), 1)
+    r = pw.contact_function(box.wrap_vectors(positions[j] - positions[i]), q[i], q[j], outputs=("mu2",))
+    assert np.all(pw.is_valid(r.status))
+    return float(r.mu2.min())
+
+
+def test_monte_carlo_compresses_without_ever_holding_an_overlap():
+    mc = pw.HardParticleMC.dilute_spheroids(60, seed=3, packing=0.3, threads=2)
+    start = mc.packing
+    assert 0 < start < 0.3 and mc.sweeps == 0
+    seen = []
+
+    def progress(sweeps, packing, acceptance):
+        # The callback may read the state: checked against brute force after
+        # every sweep of the compression.
+        assert min_mu2(mc.scene()) >= 1
+        seen.append((sweeps, packing, acceptance))
+
+    mc.compress_to_packing(max_sweeps=5000, progress=progress)
+    assert mc.packing >= 0.3 * (1 - 1e-12)
+    assert len(seen) == mc.sweeps > 0 and [s for s, _, _ in seen] == list(range(1, len(seen) + 1))
+    assert all(0 <= a <= 1 for _, _, a in seen)
+    assert mc.overlapping_pairs() == 0
+    report = mc.sweep()
+    assert report["proposed"] == 60 and 0 < report["accepted"] <= report["proposed"]
+    assert min_mu2(mc.scene()) >= 1
+    # The same seed gives the same state.
+    again = pw.HardParticleMC.dilute_spheroids(60, seed=3, packing=0.3, threads=1)
+    again.compress_to_packing(max_sweeps=5000)
+    again.sweep()
+    assert np.array_equal(again.scene()["positions"], mc.scene()["positions"])
+
+
+def test_monte_carlo_from_arrays_and_bad_input():
+    scene = pw.HardParticleMC.dilute_spheroids(20, seed=5).scene()
+    mc = pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"], box=scene["box"],
+                           packing=0.2, seed=9)
+    assert abs(mc.packing - pw.HardParticleMC.dilute_spheroids(20, seed=5).packing) < 1e-12
+    mc.sweep()
+    assert min_mu2(mc.scene()) >= 1
+    with pytest.raises(ValueError, match="periodic"):
+        pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"], box=None)
+    with pytest.raises(ValueError, match="packing"):
+        pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"], box=scene["box"],
+                          packing=1.5)
+    with pytest.raises(ValueError, match="semi_axes"):
+        pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"][:5], box=scene["box"])
+    # An overlapping start: the compression finds it and says so.
+    overlapping = pw.HardParticleMC(np.zeros((2, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(10))
+    with pytest.raises(RuntimeError, match="overlap"):
+        overlapping.compress()

@@ -11,6 +11,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <functional>
 #include <map>
 
 #include <omp.h>
@@ -822,6 +823,116 @@ class PySkinNeighborList {
   std::mutex lock_;
 };
 
+// The hard-particle Monte Carlo example (monte_carlo.hpp). Every call takes
+// `lock_` after releasing the GIL (one call at a time; another Python
+// thread's waits without holding the GIL). The lock is recursive: the
+// progress callback of compress_to_packing, called between sweeps in the
+// calling thread, may read the state (or sweep) itself.
+class PyHardParticleMC {
+ public:
+  static pwcontact::HardParticleMCOptions options(double packing, double translation,
+                                                  double rotation, bool adapt_steps,
+                                                  std::uint64_t seed, int threads) {
+    pwcontact::HardParticleMCOptions o;
+    o.packing = packing;
+    o.translation = translation;
+    o.rotation = rotation;
+    o.adapt_steps = adapt_steps;
+    o.seed = seed;
+    o.threads = thread_count(threads);
+    return o;
+  }
+
+  // From arrays: positions (N, 3), semi_axes (N, 3 | 3,), orientations
+  // (N, 4 | 4, | None).
+  static PyHardParticleMC from_arrays(const py::object& positions_in,
+                                      const py::object& orientations_in,
+                                      const py::object& semi_axes_in, const py::object& box,
+                                      const pwcontact::HardParticleMCOptions& o) {
+    const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
+    if (positions.broadcast) throw py::value_error("positions must have shape (N, 3)");
+    const std::size_t n = positions.rows;
+    const Rows<double> orientations = orientation_rows(orientations_in);
+    expect_rows(orientations, n, "orientations");
+    const Rows<double> axes = rows_of<double>(semi_axes_in, 3, "semi_axes");
+    expect_rows(axes, n, "semi_axes");
+    std::vector<std::array<double, 3>> centre(n), semi_axes(n);
+    std::vector<std::array<double, 4>> orientation(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k)
+        centre[i][k] = positions.at(i, k), semi_axes[i][k] = axes.at(i, k);
+      for (int k = 0; k < 4; ++k) orientation[i][k] = orientations.at(i, k);
+    }
+    const pwcontact::Box b = make_box(box);
+    py::gil_scoped_release release;
+    return PyHardParticleMC(pwcontact::HardParticleMC(b, std::move(centre), std::move(semi_axes),
+                                                      std::move(orientation), o));
+  }
+
+  explicit PyHardParticleMC(pwcontact::HardParticleMC mc) : mc_(std::move(mc)) {}
+  PyHardParticleMC(PyHardParticleMC&& other) noexcept : mc_(std::move(other.mc_)) {}
+
+  // f(mc) with the GIL released and the lock held.
+  template <class F>
+  auto run(F&& f) {
+    py::gil_scoped_release release;
+    std::lock_guard<std::recursive_mutex> hold(lock_);
+    return f(mc_);
+  }
+  // The lock, taken without the GIL (for reads that build Python objects).
+  std::unique_lock<std::recursive_mutex> reading() {
+    py::gil_scoped_release release;
+    return std::unique_lock<std::recursive_mutex>(lock_);
+  }
+
+  py::dict sweep() {
+    const pwcontact::SweepReport r = run([](pwcontact::HardParticleMC& mc) { return mc.sweep(); });
+    py::dict d;
+    d["proposed"] = r.proposed;
+    d["accepted"] = r.accepted;
+    d["left_domain"] = r.left_domain;
+    d["seconds"] = r.seconds;
+    return d;
+  }
+
+  // progress(sweeps, packing, acceptance) after each sweep, with the GIL.
+  void compress_to_packing(std::size_t max_sweeps, const py::object& progress) {
+    std::function<void(std::size_t, double, double)> call;
+    if (!progress.is_none())
+      call = [&progress](std::size_t sweeps, double packing, double acceptance) {
+        py::gil_scoped_acquire acquire;
+        progress(sweeps, packing, acceptance);
+      };
+    run([&](pwcontact::HardParticleMC& mc) { mc.compress_to_packing(max_sweeps, call); });
+  }
+
+  py::dict state() {
+    const auto hold = reading();
+    const std::size_t n = mc_.semi_axes().size();
+    py::array_t<double> axes({py::ssize_t(n), py::ssize_t(3)}),
+        orientations({py::ssize_t(n), py::ssize_t(4)});
+    auto a = axes.mutable_unchecked<2>();
+    auto o = orientations.mutable_unchecked<2>();
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) a(i, k) = mc_.semi_axes()[i][k];
+      for (int k = 0; k < 4; ++k) o(i, k) = mc_.orientation()[i][k];
+    }
+    const pwcontact::Box& b = mc_.box();
+    py::dict d;
+    d["positions"] = store_rows(mc_.particles(), false);
+    d["orientations"] = orientations;
+    d["semi_axes"] = axes;
+    d["box"] = py::make_tuple(b.length[0], b.length[1], b.length[2], b.tilt[0], b.tilt[1],
+                              b.tilt[2], 3, true);
+    return d;
+  }
+
+  pwcontact::HardParticleMC mc_;
+
+ private:
+  std::recursive_mutex lock_;
+};
+
 // Seconds of the C++ calls the Python ones are measured against
 // (bench/python_overhead.py): the same numbers, already in the layout the
 // C++ API takes (SoA pairs; a ParticleStore), set up outside the timing.
@@ -1130,6 +1241,53 @@ PYBIND11_MODULE(_pwcontact, m) {
       .def("q", [](const PyMovingScene& s) {
         const auto hold = s.reading();
         return store_rows(s.scene_.particles(), true);
+      });
+
+  py::class_<PyHardParticleMC>(m, "HardParticleMC")
+      .def(py::init([](const py::object& positions, const py::object& orientations,
+                       const py::object& semi_axes, const py::object& box, double packing,
+                       double translation, double rotation, bool adapt_steps, std::uint64_t seed,
+                       int threads) {
+             return PyHardParticleMC::from_arrays(
+                 positions, orientations, semi_axes, box,
+                 PyHardParticleMC::options(packing, translation, rotation, adapt_steps, seed,
+                                           threads));
+           }),
+           py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"), py::arg("box"),
+           py::arg("packing"), py::arg("translation"), py::arg("rotation"), py::arg("adapt_steps"),
+           py::arg("seed"), py::arg("threads"))
+      .def_static(
+          "dilute_spheroids",
+          [](std::size_t n, std::uint64_t seed, double max_aspect, double packing,
+             double translation, double rotation, bool adapt_steps, int threads) {
+            const pwcontact::HardParticleMCOptions o = PyHardParticleMC::options(
+                packing, translation, rotation, adapt_steps, seed, threads);
+            py::gil_scoped_release release;
+            return PyHardParticleMC(
+                pwcontact::HardParticleMC::dilute_spheroids(n, seed, max_aspect, o));
+          },
+          py::arg("n"), py::arg("seed"), py::arg("max_aspect"), py::arg("packing"),
+          py::arg("translation"), py::arg("rotation"), py::arg("adapt_steps"), py::arg("threads"))
+      .def("sweep", &PyHardParticleMC::sweep)
+      .def("compress",
+           [](PyHardParticleMC& s) {
+             return s.run([](pwcontact::HardParticleMC& mc) { return mc.compress(); });
+           })
+      .def("compress_to_packing", &PyHardParticleMC::compress_to_packing, py::arg("max_sweeps"),
+           py::arg("progress"))
+      .def("overlapping_pairs",
+           [](PyHardParticleMC& s) {
+             return s.run([](pwcontact::HardParticleMC& mc) { return mc.overlapping_pairs(); });
+           })
+      .def("state", &PyHardParticleMC::state)
+      .def("numbers", [](PyHardParticleMC& s) {
+        const auto hold = s.reading();
+        py::dict d;
+        d["packing"] = s.mc_.packing();
+        d["translation"] = s.mc_.translation();
+        d["rotation"] = s.mc_.rotation();
+        d["sweeps"] = s.mc_.sweeps();
+        return d;
       });
 
   py::class_<PySkinNeighborList>(m, "SkinNeighborList")
