@@ -390,6 +390,27 @@ def _check_in_plane(positions, orientations) -> None:
                              f"({', '.join(map(repr, o[tilted[0]]))}) is not a rotation about z")
 
 
+def _scene_arguments(who: str, positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored):
+    """The particles' arguments as screen() takes them: the keywords that
+    read_gsd / read_lammps_* return beside them accepted and ignored,
+    semi_axes=(type_semi_axes, typeid) unpacked, the box made, a 2D scene
+    checked in its plane. Returns (positions, semi_axes, type_semi_axes,
+    typeid, box)."""
+    for key in ignored:
+        if key not in ("type_names", "frame", "frames", "id"):
+            raise TypeError(f"{who}() got an unexpected keyword argument {key!r}")
+    if isinstance(semi_axes, tuple) and len(semi_axes) == 2:
+        if type_semi_axes is not None or typeid is not None:
+            raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
+        type_semi_axes, typeid = semi_axes
+        semi_axes = None
+    b = _as_box(box)
+    positions = np.asarray(positions, dtype=float)
+    if b is not None and b.is2D:
+        _check_in_plane(positions, orientations)
+    return positions, semi_axes, type_semi_axes, typeid, b
+
+
 class DistributedScreenResult:
     """The pairs a screen over MPI ranks found (``screen(..., comm=...)``).
 
@@ -438,18 +459,8 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     on rank 0). threads is then per rank. An error in any rank's input is
     raised on every rank.
     """
-    for key in ignored:
-        if key not in ("type_names", "frame", "frames", "id"):
-            raise TypeError(f"screen() got an unexpected keyword argument {key!r}")
-    if isinstance(semi_axes, tuple) and len(semi_axes) == 2:
-        if type_semi_axes is not None or typeid is not None:
-            raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
-        type_semi_axes, typeid = semi_axes
-        semi_axes = None
-    b = _as_box(box)
-    positions = np.asarray(positions, dtype=float)
-    if b is not None and b.is2D:
-        _check_in_plane(positions, orientations)
+    positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
+        "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored)
     if comm is not None:
         if not _core.with_mpi:
             raise RuntimeError("screen(comm=...): this pwcontact was built without MPI "
@@ -585,18 +596,8 @@ class SkinNeighborList:
     def update(self, positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None,
                typeid=None, box=None, **ignored) -> ScreenResult:
         """The pairs with mu < cutoff of the particles as they are now."""
-        for key in ignored:
-            if key not in ("type_names", "frame", "frames", "id"):
-                raise TypeError(f"update() got an unexpected keyword argument {key!r}")
-        if isinstance(semi_axes, tuple) and len(semi_axes) == 2:
-            if type_semi_axes is not None or typeid is not None:
-                raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
-            type_semi_axes, typeid = semi_axes
-            semi_axes = None
-        b = _as_box(box)
-        positions = np.asarray(positions, dtype=float)
-        if b is not None and b.is2D:
-            _check_in_plane(positions, orientations)
+        positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
+            "update", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored)
         raw = self._list.update(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                                 None if b is None else b._core())
         return ScreenResult(raw, positions, b)

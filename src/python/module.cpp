@@ -677,7 +677,7 @@ py::dict scene_dict(const pwcontact::Scene& s) {
 
 // The persistent scene of trial moves (moving_scene.hpp). Queries run
 // without the GIL, so that another Python thread may call in meanwhile: they
-// share `lock`, and the calls that change the scene hold it alone (each
+// share `lock_`, and the calls that change the scene hold it alone (each
 // takes it after releasing the GIL, and lets it go before taking the GIL
 // back, so that neither waits on the other while holding both).
 class PyMovingScene {
