@@ -258,3 +258,45 @@ def test_monte_carlo_from_arrays_and_bad_input():
     overlapping = pw.HardParticleMC(np.zeros((2, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(10))
     with pytest.raises(RuntimeError, match="overlap"):
         overlapping.compress()
+
+
+def test_queries_from_other_threads_while_the_scene_grows():
+    # Queries run without the GIL; inserts (which rebuild the cells and move
+    # their arrays) meanwhile must wait for them, and they for the inserts.
+    import threading
+
+    rng = np.random.default_rng(15)
+    box = pw.Box.cube(20)
+    scene = pw.MovingScene(rng.uniform(0, 20, (50, 3)), None, [0.3, 0.3, 0.3], box=box)
+    stop = threading.Event()
+    failures = []
+
+    def query():
+        local = np.random.default_rng(16)
+        while not stop.is_set():
+            try:
+                found = scene.overlaps(local.uniform(0, 20, 3), None, [0.3, 0.3, 0.3])
+                assert found is None or 0 <= found < 2050
+                scene.overlaps_many(local.uniform(0, 20, (8, 3)), None, [0.3, 0.3, 0.3], threads=1)
+            except Exception as e:  # noqa: BLE001 (reported below)
+                failures.append(e)
+                return
+
+    threads = [threading.Thread(target=query) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for k in range(2000):
+        # Each a little larger than the last: each insert rebuilds the cells.
+        radius = 0.3 + 1e-4 * k
+        scene.insert(rng.uniform(0, 20, 3), None, [radius, radius, radius])
+    stop.set()
+    for t in threads:
+        t.join()
+    assert not failures, failures
+    assert len(scene) == 2050
+    for _ in range(20):
+        position = rng.uniform(0, 20, 3)
+        q = pw.quadratic_form([0.3, 0.3, 0.3], [1, 0, 0, 0])[0]  # (identity: the same as no orientation)
+        expected = overlapping(scene, position, q, -1)
+        found = scene.overlaps(position, None, [0.3, 0.3, 0.3])
+        assert (found is None) == (not expected) and (found is None or found in expected)
