@@ -58,6 +58,18 @@ def test_bad_moves_raise_and_leave_the_scene_unchanged():
     assert np.array_equal(scene.positions, before)
     assert scene.overlaps([0.9, 0, 0], None, [0.5, 0.5, 0.5]) == 0
     assert scene.overlaps([1.1, 0, 0], None, [0.5, 0.5, 0.5]) is None
+    # A trial's numbers as numpy rows (of any dtype), tuples or lists; wrong
+    # counts named.
+    assert scene.overlaps(np.array([0.9, 0, 0], dtype=np.float32), np.array([1.0, 0, 0, 0]),
+                          np.array([0.5, 0.5, 0.5])) == 0
+    assert scene.overlaps((1.1, 0, 0), (1, 0, 0, 0), (0.5, 0.5, 0.5)) is None
+    for position, message in (([1, 2], "position must be 3 numbers"),
+                              (np.zeros(4), r"position must have shape \(3,\)"),
+                              (np.zeros((1, 3)), r"position must have shape \(3,\)")):
+        with pytest.raises(ValueError, match=message):
+            scene.overlaps(position, None, [0.5, 0.5, 0.5])
+    with pytest.raises(ValueError, match="orientation must"):
+        scene.overlaps([0, 0, 0], [1, 0, 0], [0.5, 0.5, 0.5])
 
 
 def test_many_trials_at_once_answer_as_the_single_queries():

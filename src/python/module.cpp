@@ -675,6 +675,28 @@ py::dict scene_dict(const pwcontact::Scene& s) {
   return d;
 }
 
+// N numbers of one particle (a position, a quaternion, a form): a numpy
+// array through its buffer (cast element by element, a numpy row took
+// ~1 us a number, most of a single query's time from Python), anything
+// else by pybind11's cast of a sequence.
+template <std::size_t N>
+std::array<double, N> numbers(const py::object& given, const char* name) {
+  std::array<double, N> out;
+  if (py::isinstance<py::array>(given)) {
+    const auto a = py::array_t<double, py::array::forcecast>::ensure(given);
+    if (!a || a.ndim() != 1 || a.shape(0) != py::ssize_t(N))
+      throw py::value_error(std::string(name) + " must have shape (" + std::to_string(N) + ",)");
+    const auto v = a.unchecked<1>();
+    for (std::size_t k = 0; k < N; ++k) out[k] = v(py::ssize_t(k));
+    return out;
+  }
+  try {
+    return given.cast<std::array<double, N>>();
+  } catch (const py::cast_error&) {
+    throw py::value_error(std::string(name) + " must be " + std::to_string(N) + " numbers");
+  }
+}
+
 // The persistent scene of trial moves (moving_scene.hpp). Queries run
 // without the GIL, so that another Python thread may call in meanwhile: they
 // share `lock_`, and the calls that change the scene hold it alone (each
@@ -692,15 +714,13 @@ class PyMovingScene {
                                            const py::object& orientation,
                                            const py::object& semi_axes, const py::object& q,
                                            const py::object& type_id) const {
-    const auto c = position.cast<std::array<double, 3>>();
-    const std::array<double, 4> o = orientation.is_none()
-                                        ? std::array<double, 4>{1, 0, 0, 0}
-                                        : orientation.cast<std::array<double, 4>>();
+    const auto c = numbers<3>(position, "position");
+    const std::array<double, 4> o = orientation.is_none() ? std::array<double, 4>{1, 0, 0, 0}
+                                                          : numbers<4>(orientation, "orientation");
     const int given = int(!semi_axes.is_none()) + int(!q.is_none()) + int(!type_id.is_none());
     if (given != 1) throw py::value_error("give the trial's shape one way: semi_axes, q or typeid");
-    if (!q.is_none()) return scene_.trial(c, q.cast<std::array<double, 6>>());
-    if (!semi_axes.is_none())
-      return scene_.trial_axes(c, semi_axes.cast<std::array<double, 3>>(), o);
+    if (!q.is_none()) return scene_.trial(c, numbers<6>(q, "q"));
+    if (!semi_axes.is_none()) return scene_.trial_axes(c, numbers<3>(semi_axes, "semi_axes"), o);
     return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
   }
 
