@@ -676,9 +676,9 @@ py::dict scene_dict(const pwcontact::Scene& s) {
 }
 
 // N numbers of one particle (a position, a quaternion, a form): a numpy
-// array through its buffer (cast element by element, a numpy row took
-// ~1 us a number, most of a single query's time from Python), anything
-// else by pybind11's cast of a sequence.
+// array through its buffer, with its shape checked; anything else by
+// pybind11's cast of a sequence. A wrong count is a ValueError naming the
+// argument (pybind11's cast error names neither it nor the count).
 template <std::size_t N>
 std::array<double, N> numbers(const py::object& given, const char* name) {
   std::array<double, N> out;
