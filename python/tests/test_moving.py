@@ -266,6 +266,18 @@ def test_monte_carlo_from_arrays_and_bad_input():
                           packing=1.5)
     with pytest.raises(ValueError, match="semi_axes"):
         pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"][:5], box=scene["box"])
+    # An exception from the progress callback ends the compression there,
+    # and the state stays usable.
+    class Stop(Exception):
+        pass
+
+    def stop_at_three(sweeps, packing, acceptance):
+        if sweeps == 3:
+            raise Stop
+
+    with pytest.raises(Stop):
+        mc.compress_to_packing(progress=stop_at_three)
+    assert mc.sweeps == 4 and mc.overlapping_pairs() == 0
     # An overlapping start: the compression finds it and says so.
     overlapping = pw.HardParticleMC(np.zeros((2, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(10))
     with pytest.raises(RuntimeError, match="overlap"):
