@@ -545,9 +545,8 @@ class HardParticleMC:
         """The state as the keyword arguments of screen (positions,
         orientations, semi_axes, box)."""
         raw = self._mc.state()
-        lx, ly, lz, xy, xz, yz, *_ = raw["box"]
         return {"positions": raw["positions"], "orientations": raw["orientations"],
-                "semi_axes": raw["semi_axes"], "box": Box(lx, ly, lz, xy, xz, yz)}
+                "semi_axes": raw["semi_axes"], "box": _box_of(raw["box"])}
 
     @property
     def packing(self) -> float:
@@ -664,10 +663,15 @@ def read_gsd(path: str, frame: int = -1) -> dict:
             "typeid": typeid, "box": box, "type_names": types, "frame": index}
 
 
+def _box_of(raw) -> Optional[Box]:
+    """The Box of the compiled core's (Lx, Ly, Lz, xy, xz, yz, dimensions,
+    periodic); None for an open box."""
+    lx, ly, lz, xy, xz, yz, dimensions, periodic = raw
+    return Box(lx, ly, lz, xy, xz, yz, is2D=dimensions == 2) if periodic else None
+
+
 def _scene(raw: dict) -> dict:
-    lx, ly, lz, xy, xz, yz, dimensions, periodic = raw["box"]
-    box = Box(lx, ly, lz, xy, xz, yz, is2D=dimensions == 2) if periodic else None
-    return {"positions": raw["positions"], "q": raw["q"], "box": box, "typeid": raw["typeid"],
+    return {"positions": raw["positions"], "q": raw["q"], "box": _box_of(raw["box"]), "typeid": raw["typeid"],
             "type_names": raw["type_names"], "id": raw["id"], "frame": raw["frame"]}
 
 
@@ -698,9 +702,8 @@ def spheroid_scene(n: int, seed: int = 1, packing: float = 0.3, max_aspect: floa
     volume of a sphere of radius 0.5) in a periodic cube at the packing
     fraction, as the keyword arguments of screen."""
     raw = _core.spheroid_scene(int(n), int(seed), float(packing), float(max_aspect))
-    lx, ly, lz, *_ = raw["box"]
     return {"positions": raw["positions"], "orientations": raw["orientations"],
-            "semi_axes": raw["semi_axes"], "box": Box(lx, ly, lz)}
+            "semi_axes": raw["semi_axes"], "box": _box_of(raw["box"])}
 
 
 class MovingScene:

@@ -420,6 +420,13 @@ pwcontact::Box make_box(const py::object& box) {
   return pwcontact::Box::triclinic(v[0], v[1], v[2], v[3], v[4], v[5]);
 }
 
+// make_box's inverse: (Lx, Ly, Lz, xy, xz, yz, dimensions, periodic), as
+// the Python package's _box_of reads it.
+py::tuple box_tuple(const pwcontact::Box& b) {
+  return py::make_tuple(b.length[0], b.length[1], b.length[2], b.tilt[0], b.tilt[1], b.tilt[2],
+                        b.two_dimensional ? 2 : 3, b.periodic);
+}
+
 // A store from numpy arrays: forms q (N, 6); or semi-axes (N, 3 | 3,) and
 // orientations (N, 4 | 4,); or per-type semi-axes (T, 3) and type_id (N,).
 pwcontact::ParticleStore make_store(const py::object& positions_in,
@@ -660,9 +667,7 @@ py::dict scene_dict(const pwcontact::Scene& s) {
   py::dict d;
   d["positions"] = store_rows(s.particles, false);
   d["q"] = store_rows(s.particles, true);
-  const std::array<double, 3> t = s.box.tilt;
-  d["box"] = py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], t[0], t[1], t[2],
-                            s.box.two_dimensional ? 2 : 3, s.box.periodic);
+  d["box"] = box_tuple(s.box);
   py::array_t<std::uint32_t> typeid_array{py::ssize_t(s.type_id.size())};
   std::copy(s.type_id.begin(), s.type_id.end(), typeid_array.mutable_data());
   d["typeid"] = typeid_array;
@@ -942,8 +947,7 @@ class PyHardParticleMC {
     d["positions"] = store_rows(mc_.particles(), false);
     d["orientations"] = orientations;
     d["semi_axes"] = axes;
-    d["box"] = py::make_tuple(b.length[0], b.length[1], b.length[2], b.tilt[0], b.tilt[1],
-                              b.tilt[2], 3, true);
+    d["box"] = box_tuple(b);
     return d;
   }
 
@@ -1141,8 +1145,7 @@ PYBIND11_MODULE(_pwcontact, m) {
     d["positions"] = positions;
     d["orientations"] = orientations;
     d["semi_axes"] = axes;
-    d["box"] =
-        py::make_tuple(s.box.length[0], s.box.length[1], s.box.length[2], 0.0, 0.0, 0.0, 3, true);
+    d["box"] = box_tuple(s.box);
     return d;
   });
 
