@@ -1022,6 +1022,99 @@ TEST(Screen, CellListsBuiltInParallelGiveTheOneThreadAnswer) {
   }
 }
 
+// One workspace through a sequence of screens that grow and shrink its
+// arrays (scenes of other sizes, boxes and size classes, other thread counts
+// and cutoffs, with and without mu^2, an empty scene, after release()):
+// every screen's pairs are the brute force's, and its pairs, mu^2 and
+// counts exactly those of a screen without a workspace (the same arithmetic
+// in other memory).
+TEST(Screen, AWorkspaceReusedAcrossScenesGivesTheBruteForcesPairsEachTime) {
+  struct Step {
+    SceneSpec spec;
+    double cutoff;
+    bool with_mu2;
+    int threads;
+  };
+  const std::vector<Step> steps = {
+      {{900, 0.3, 3, 0.05, 0.6, 9.0, true, 31}, 1.0, false, 2},  // several size classes
+      {{400, 0.2, 5, 0.3, 0.3, 6.0, false, 32}, 1.3, true, 1},   // one size, open box
+      {{1200, 0.5, 2, 0.2, 0.4, 10.0, true, 33}, 1.1, true, 7},  // larger: arrays grow
+      {{500, 0.3, 3, 0.05, 0.6, 7.5, true, 34}, 1.0, false, 2},  // smaller
+      {{0, 1, 1, 1, 1, 1.0, false, 35}, 1.0, true, 2},           // empty
+      {{900, 0.3, 3, 0.05, 0.6, 9.0, true, 31}, 1.0, true, 3},
+  };
+  pwcontact::ScreenWorkspace workspace;
+  EXPECT_EQ(workspace.bytes(), 0u);
+  ScreenedPairs reused;  // (the output's storage is reused too)
+  for (std::size_t k = 0; k <= steps.size(); ++k) {
+    if (k == steps.size()) {  // the first step again, after release()
+      workspace.release();
+      EXPECT_EQ(workspace.bytes(), 0u);
+    }
+    const Step& step = steps[k % steps.size()];
+    const std::string what = "workspace, step " + std::to_string(k);
+    const ParticleStore s = make_scene(step.spec);
+    const Box box = box_of(step.spec);
+    ScreenOptions options;
+    options.cutoff = step.cutoff;
+    options.with_mu2 = step.with_mu2;
+    options.threads = step.threads;
+    const ScreenReport got = pwcontact::screen_pairs(s, box, options, reused, workspace);
+    ScreenedPairs alone;
+    const ScreenReport expected = pwcontact::screen_pairs(s, box, options, alone);
+    EXPECT_EQ(reused.i, alone.i) << what;
+    EXPECT_EQ(reused.j, alone.j) << what;
+    EXPECT_EQ(reused.mu2, alone.mu2) << what;
+    EXPECT_EQ(reused.mu2.size(), step.with_mu2 ? reused.size() : 0u) << what;
+    EXPECT_EQ(got.candidate_pairs, expected.candidate_pairs) << what;
+    EXPECT_EQ(got.solved, expected.solved) << what;
+    EXPECT_EQ(got.found, reused.size()) << what;
+    EXPECT_EQ(got.size_classes, expected.size_classes) << what;
+    if (step.spec.particles > 0) {
+      EXPECT_GT(reused.size(), 50u) << what;
+      EXPECT_GT(workspace.bytes(), step.spec.particles * sizeof(double)) << what;
+    }
+    compare(s, box, step.cutoff, reused, what);
+  }
+}
+
+// A workspace serves one screen at a time: a second call meanwhile (here
+// from the first's progress callback) is refused, the first finishes, and
+// the workspace serves the next; a moved-from workspace is refused.
+TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
+  const SceneSpec spec{300, 0.3, 3, 0.05, 0.6, 7.5, true, 36};
+  const ParticleStore s = make_scene(spec);
+  const Box box = box_of(spec);
+  pwcontact::ScreenWorkspace workspace;
+  ScreenOptions options;
+  options.threads = 1;
+  std::size_t refused = 0;
+  options.progress = [&](double) {
+    ScreenedPairs inner;
+    try {
+      pwcontact::screen_pairs(s, box, ScreenOptions(), inner, workspace);
+    } catch (const std::logic_error& e) {
+      EXPECT_NE(std::string(e.what()).find("in use"), std::string::npos) << e.what();
+      ++refused;
+    }
+  };
+  ScreenedPairs first, alone;
+  pwcontact::screen_pairs(s, box, options, first, workspace);
+  EXPECT_GT(refused, 0u);
+  options.progress = nullptr;
+  pwcontact::screen_pairs(s, box, options, alone);
+  EXPECT_EQ(first.i, alone.i);
+  EXPECT_EQ(first.j, alone.j);
+  ScreenedPairs again;
+  pwcontact::screen_pairs(s, box, options, again, workspace);  // free again
+  EXPECT_EQ(again.i, alone.i);
+  pwcontact::ScreenWorkspace taken = std::move(workspace);
+  EXPECT_THROW(pwcontact::screen_pairs(s, box, options, again, workspace), std::invalid_argument);
+  EXPECT_EQ(workspace.bytes(), 0u);
+  pwcontact::screen_pairs(s, box, options, again, taken);
+  EXPECT_EQ(again.j, alone.j);
+}
+
 TEST(Screen, APeriodicBoxTooSmallForTheCutoffIsAnError) {
   ParticleStore s;
   s.add({0, 0, 0}, pwcontact::sphere(1.0));

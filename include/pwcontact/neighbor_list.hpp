@@ -64,7 +64,9 @@ class SkinNeighborList {
   // The pairs (i < j, sorted) with mu < cutoff of the particles as they are
   // now, with mu^2: from the list when every particle's m_i is within the
   // skin (and the count and box are unchanged), after a rebuild otherwise.
-  // Throws as screen_pairs does.
+  // Throws as screen_pairs does. Rebuilds screen in the list's own
+  // ScreenWorkspace: the memory of the last rebuild's screen (about 150
+  // bytes a particle) is kept for the next.
   SkinReport update(const ParticleStore& particles, const Box& box, ScreenedPairs& out);
 
   std::size_t rebuilds() const noexcept { return rebuilds_; }
@@ -79,6 +81,8 @@ class SkinNeighborList {
   // The listed pairs (i < j) and the lambda each had at its last solve.
   std::vector<std::uint32_t> first_, second_;
   std::vector<double> lambda_;
+  ScreenWorkspace workspace_;  // of the rebuilds' screens
+  ScreenedPairs listed_;       // what the last rebuild's screen listed
 };
 
 }  // namespace pwcontact

@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -266,6 +267,40 @@ struct ScreenReport {
 // direction (the minimum image would then miss pairs).
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
                           const ScreenOptions& options, ScreenedPairs& out);
+
+// Memory one screen leaves for the next: the cell lists' copies of the
+// particles (about 100 bytes each), the threads' buffers of pairs, the sort's
+// arrays, and out's storage. A simulation that screens its scene every so
+// many steps passes the same workspace (and the same out) to each call: the
+// calls after the first reuse that memory instead of asking the system for
+// fresh pages, which the kernel maps and clears on their first touch (on
+// the 1M demo scene with 1 thread that was about a sixth of a screen; see
+// README). The answers are the same with or without one. The workspace
+// holds the memory of the largest screen it served until release() or its
+// destruction; bytes() tells how much. One screen at a time: a second call
+// while one runs throws std::logic_error (and release() must not run
+// meanwhile).
+class ScreenWorkspace {
+ public:
+  ScreenWorkspace();
+  ~ScreenWorkspace();
+  ScreenWorkspace(ScreenWorkspace&&) noexcept;
+  ScreenWorkspace& operator=(ScreenWorkspace&&) noexcept;
+  std::size_t bytes() const noexcept;
+  void release() noexcept;
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  friend ScreenReport screen_pairs(const ParticleStore&, const Box&, const ScreenOptions&,
+                                   ScreenedPairs&, ScreenWorkspace&);
+};
+
+// screen_pairs in a workspace's memory (out's storage reused too). Throws
+// as screen_pairs, and std::logic_error as above.
+ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
+                          const ScreenOptions& options, ScreenedPairs& out,
+                          ScreenWorkspace& workspace);
 
 // The same pipeline (prefilters, solve, sorted output) on a candidate list of
 // one's own, e.g. from an existing neighbour list: the pairs (first[k],

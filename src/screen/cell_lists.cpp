@@ -67,8 +67,19 @@ double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<
   return 1e3 * std::numeric_limits<double>::epsilon() * scale;
 }
 
+std::size_t CellListMemory::bytes() const {
+  std::size_t total = size_class.capacity() + cell.capacity() * sizeof(std::uint32_t);
+  for (const std::vector<std::uint32_t>& counts : place)
+    total += counts.capacity() * sizeof(std::uint32_t);
+  for (const ClassGrid& grid : grids)
+    total += grid.cell_start.capacity() * sizeof(std::uint32_t) +
+             grid.coarse.capacity() * sizeof(CoarseMember) +
+             grid.member.capacity() * sizeof(Member);
+  return total;
+}
+
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
-                           int threads) {
+                           int threads, CellListMemory* memory) {
   CellLists lists;
   lists.box = box;
   lists.geometry = BoxGeometry(box);
@@ -132,8 +143,14 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   lists.cutoff = cutoff;
   lists.largest_reach = cutoff * largest;
 
+  // The build's arrays: an earlier build's when given (their old contents
+  // are overwritten before they are read), else the build's own.
+  CellListMemory own;
+  CellListMemory& kept = memory ? *memory : own;
+
   // Classes, then only the non-empty ones, largest radii first.
-  std::vector<std::uint8_t> size_class(n);  // per particle: halvings, then its grid
+  std::vector<std::uint8_t>& size_class = kept.size_class;  // per particle: halvings, then its grid
+  size_class.resize(n);
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     const int halvings = std::ilogb(largest / bounding[i]);  // floor(log2), >= 0
@@ -150,6 +167,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     compact[c] = int(lists.grids.size());
     if (members[c] == 0) continue;
     ClassGrid grid;
+    const std::size_t rank = lists.grids.size();
+    if (rank < kept.grids.size()) {  // (the arrays only: every other field is set below)
+      ClassGrid& old = kept.grids[rank];
+      grid.cell_start.swap(old.cell_start);
+      grid.coarse.swap(old.coarse);
+      grid.member.swap(old.member);
+    }
     grid.largest_reach = cutoff * radius[c];
     // Cells cells_per_reach to the reach of two of the class's largest
     // members; fewer (wider) when that would make too many.
@@ -175,7 +199,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   }
 
   // Counting sort of each class's members by cell, in particle order.
-  std::vector<std::uint32_t> cell(n);
+  std::vector<std::uint32_t>& cell = kept.cell;
+  cell.resize(n);
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     size_class[i] = std::uint8_t(compact[size_class[i]]);  // (from here on: its grid)
@@ -205,7 +230,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     const ClassGrid& grid = lists.grids[g];
     first_cell[g + 1] = first_cell[g] + std::size_t(grid.cells[0]) * grid.cells[1] * grid.cells[2];
   }
-  std::vector<std::vector<std::uint32_t>> place(static_cast<std::size_t>(parts));
+  std::vector<std::vector<std::uint32_t>>& place = kept.place;
+  place.resize(static_cast<std::size_t>(parts));
   auto chunk = [&](int p) { return n * std::size_t(p) / std::size_t(parts); };
 #pragma omp parallel for num_threads(parts) schedule(static, 1)
   for (int p = 0; p < parts; ++p) {
@@ -241,10 +267,10 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (std::size_t i = chunk(p); i < chunk(p + 1); ++i)
       cell[i] = next[first_cell[size_class[i]] + cell[i]]++;
   }
-  std::vector<std::vector<std::uint32_t>>().swap(place);
-  // The copies in cell order, read in particle order (streaming reads,
-  // scattered writes of a half and a whole cache line per particle: measured
-  // faster than gathering them in cell order).
+  if (!memory) std::vector<std::vector<std::uint32_t>>().swap(place);
+    // The copies in cell order, read in particle order (streaming reads,
+    // scattered writes of a half and a whole cache line per particle: measured
+    // faster than gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     ClassGrid& grid = lists.grids[size_class[i]];

@@ -233,9 +233,25 @@ struct CellLists {
 double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
                     const std::array<double, 3>& high);
 
-// Builds the classes and their grids (threads for the per-particle work).
+// Memory one build leaves for the next (a ScreenWorkspace's): the last
+// lists' grids, whose arrays the next build's grids take over (by class
+// rank, grown where too small), and the build's own per-particle arrays.
+// Reused pages are already mapped: fresh ones are mapped and cleared by the
+// kernel on their first touch, which on the 1M demo scene was most of the
+// cell lists' time.
+struct CellListMemory {
+  std::vector<ClassGrid> grids;
+  std::vector<std::uint8_t> size_class;
+  std::vector<std::uint32_t> cell;
+  std::vector<std::vector<std::uint32_t>> place;
+  std::size_t bytes() const;
+};
+
+// Builds the classes and their grids (threads for the per-particle work),
+// in the memory of an earlier build when given one (the same lists either
+// way).
 CellLists build_cell_lists(const ParticleStore& particles, const Box& box, double cutoff,
-                           int threads);
+                           int threads, CellListMemory* memory = nullptr);
 
 // A candidate pair: members i and j of their grids, r = c_j - c_i by the
 // nearest image.

@@ -72,15 +72,12 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     screen_options.with_mu2 = true;
     screen_options.threads = threads;
     screen_options.batch = options_.batch;
-    ScreenedPairs listed;
-    const ScreenReport screened = screen_pairs(particles, box, screen_options, listed);
+    const ScreenedPairs& listed = listed_;
+    const ScreenReport screened = screen_pairs(particles, box, screen_options, listed_, workspace_);
     box_ = box;
     for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
     for (int k = 0; k < 6; ++k) q_[k] = particles.q(k);
     inscribed_ = particles.inscribed_radius();
-    first_ = listed.i;
-    second_ = listed.j;
-    lambda_.assign(listed.size(), std::numeric_limits<double>::quiet_NaN());
     ++rebuilds_;
     out = ScreenedPairs();
     for (std::size_t k = 0; k < listed.size(); ++k)
@@ -91,6 +88,10 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
       }
     report.rebuilt = true;
     report.listed = listed.size();
+    // The list taken over (its old arrays left to the next rebuild's screen).
+    first_.swap(listed_.i);
+    second_.swap(listed_.j);
+    lambda_.assign(first_.size(), std::numeric_limits<double>::quiet_NaN());
     report.found = out.size();
     report.solved = screened.solved;
     report.mean_evaluations = screened.batch.mean_evaluations;

@@ -17,9 +17,11 @@ namespace pwcontact::screen {
 
 // Sorts v by key(element) (a std::uint64_t whose halves are each below
 // 2^bits_per_half), stably. Passes in which every key has the same digit
-// are skipped.
+// are skipped. The passes scatter into a second array: `scratch`'s storage
+// when given (kept there or in v for the next sort), else one of its own.
 template <class T, class Key>
-void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key) {
+void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key,
+                          std::vector<T>* scratch_memory = nullptr) {
   constexpr int digit_bits = 11;
   constexpr std::size_t buckets = std::size_t(1) << digit_bits;
   const std::size_t n = v.size();
@@ -38,7 +40,9 @@ void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key) {
     for (int p = 0; p < passes; ++p)
       ++start[std::size_t(p) * buckets + ((k >> shifts[p]) & (buckets - 1))];
   }
-  std::vector<T> scratch;
+  std::vector<T> own;
+  std::vector<T>& scratch = scratch_memory ? *scratch_memory : own;
+  bool scattering = false;  // scratch sized for v
   for (int p = 0; p < passes; ++p) {
     const int shift = shifts[p];
     std::size_t* count = start.data() + std::size_t(p) * buckets;
@@ -50,7 +54,10 @@ void radix_sort_pair_keys(std::vector<T>& v, int bits_per_half, Key key) {
       count[b] = at;
       at += here;
     }
-    if (scratch.empty()) scratch.resize(n);
+    if (!scattering) {
+      scratch.resize(n);  // (its old elements, if any, are all overwritten)
+      scattering = true;
+    }
     for (const T& x : v) scratch[count[digit(x)]++] = x;
     v.swap(scratch);
   }

@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -48,6 +50,17 @@ struct ThreadPairs {
   std::vector<Status> status;
   std::vector<std::uint8_t> overlap;
   std::vector<double> mu2;
+
+  // Ready for a screen: counts zeroed, buffers emptied (their storage kept).
+  void start() {
+    undecided.clear();
+    found.clear();
+    found_mu2.clear();
+    candidates = out = out_by_projection = in = spheres = same_form = solved = invalid = fallbacks =
+        0;
+    evaluations = seconds_compaction = seconds_solve = 0;
+    last = BatchReport();
+  }
 };
 
 // Pairs solved per call of the batch path: enough to amortise a call, few
@@ -213,17 +226,22 @@ namespace {
 // that order: each list sorted by radix in a thread of its own, merged two
 // by two while more than four remain, and the last ones merged straight
 // into emit (no merged copy: on a 4M-particle scene a fresh array for it
-// cost more than the merge).
+// cost more than the merge). scratch: the sorts' second arrays, one per
+// list (kept for the next screen by a workspace).
 template <class T, class Key, class Emit>
-void sorted_union(std::vector<std::vector<T>>& lists, int threads, std::size_t particles, Key key,
-                  Emit emit) {
+void sorted_union(std::vector<std::vector<T>>& lists, std::vector<std::vector<T>>& scratch,
+                  int threads, std::size_t particles, Key key, Emit emit) {
   const auto less = [&key](const T& x, const T& y) { return key(x) < key(y); };
   const int bits = screen::index_bits(particles);
   detail::ParallelErrors errors;
   const std::ptrdiff_t count = std::ptrdiff_t(lists.size());
+  scratch.resize(lists.size());
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (std::ptrdiff_t t = 0; t < count; ++t)
-    errors.run([&] { screen::radix_sort_pair_keys(lists[std::size_t(t)], bits, key); });
+    errors.run([&] {
+      const std::size_t l = std::size_t(t);
+      screen::radix_sort_pair_keys(lists[l], bits, key, &scratch[l]);
+    });
   errors.rethrow_if_failed();
   lists.erase(std::remove_if(lists.begin(), lists.end(), [](const auto& l) { return l.empty(); }),
               lists.end());
@@ -265,10 +283,32 @@ void sorted_union(std::vector<std::vector<T>>& lists, int threads, std::size_t p
   }
 }
 
+}  // namespace
+
+// What a screen keeps for the next (see ScreenWorkspace): the cell lists'
+// arrays, the threads' buffers, the sort's lists and their second arrays.
+struct ScreenWorkspace::Impl {
+  screen::CellListMemory cells;
+  std::vector<ThreadPairs> threads;
+  std::vector<std::vector<std::uint64_t>> keys, key_scratch;
+  std::vector<std::vector<std::pair<std::uint64_t, double>>> keyed, keyed_scratch;
+  std::atomic<bool> busy{false};
+};
+
+namespace {
+
+// The sorts' lists and second arrays: a workspace's, or the call's own.
+struct SortMemory {
+  std::vector<std::vector<std::uint64_t>> keys, key_scratch;
+  std::vector<std::vector<std::pair<std::uint64_t, double>>> keyed, keyed_scratch;
+};
+
 // Sums what the threads counted into the report, and the pairs found,
 // sorted by (i, j) and each once, into out. t1: when the search began.
+// kept: a workspace's memory (out's storage then reused too), or null.
 void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, int threads,
-            std::size_t particles, double t1, ScreenReport& report, ScreenedPairs& out) {
+            std::size_t particles, double t1, ScreenReport& report, ScreenedPairs& out,
+            ScreenWorkspace::Impl* kept) {
   // Compaction and solve ran inside the search, chunk by chunk: their times
   // are the threads' summed times shared out over the threads, and the
   // search's time what remains of the stage.
@@ -308,6 +348,18 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   // the candidate lists is kept once).
   std::size_t upper = 0;  // the pairs found, counted with repeats
   for (const ThreadPairs& t : per_thread) upper += t.found.size();
+  SortMemory own;
+  auto& keys = kept ? kept->keys : own.keys;
+  auto& key_scratch = kept ? kept->key_scratch : own.key_scratch;
+  auto& keyed = kept ? kept->keyed : own.keyed;
+  auto& keyed_scratch = kept ? kept->keyed_scratch : own.keyed_scratch;
+  if (kept) {
+    out.i.clear();
+    out.j.clear();
+    out.mu2.clear();
+  } else {
+    out = {};
+  }
   out.i.reserve(upper);
   out.j.reserve(upper);
   auto emit_pair = [&out](std::uint64_t key) {
@@ -316,26 +368,39 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   };
   if (options.with_mu2) {
     out.mu2.reserve(upper);
-    std::vector<std::vector<std::pair<std::uint64_t, double>>> lists(per_thread.size());
+    std::vector<std::vector<std::pair<std::uint64_t, double>>>& lists = keyed;
+    lists.resize(per_thread.size());
     for (std::size_t t = 0; t < per_thread.size(); ++t) {
       ThreadPairs& mine = per_thread[t];
+      lists[t].clear();
       lists[t].reserve(mine.found.size());
       for (std::size_t k = 0; k < mine.found.size(); ++k)
         lists[t].push_back({mine.found[k], mine.found_mu2[k]});
-      std::vector<std::uint64_t>().swap(mine.found);
-      std::vector<double>().swap(mine.found_mu2);
+      if (kept) {
+        mine.found.clear();
+        mine.found_mu2.clear();
+      } else {
+        std::vector<std::uint64_t>().swap(mine.found);
+        std::vector<double>().swap(mine.found_mu2);
+      }
     }
     sorted_union(
-        lists, threads, particles, [](const auto& x) { return x.first; },
+        lists, keyed_scratch, threads, particles, [](const auto& x) { return x.first; },
         [&](const std::pair<std::uint64_t, double>& x) {
           emit_pair(x.first);
           out.mu2.push_back(x.second);
         });
   } else {
-    std::vector<std::vector<std::uint64_t>> lists(per_thread.size());
-    for (std::size_t t = 0; t < per_thread.size(); ++t) lists[t].swap(per_thread[t].found);
+    // (The threads' found pairs swapped in: their buffers then hold the
+    // lists' old storage, emptied, for the next screen.)
+    std::vector<std::vector<std::uint64_t>>& lists = keys;
+    lists.resize(per_thread.size());
+    for (std::size_t t = 0; t < per_thread.size(); ++t) {
+      lists[t].clear();
+      lists[t].swap(per_thread[t].found);
+    }
     sorted_union(
-        lists, threads, particles, [](std::uint64_t x) { return x; }, emit_pair);
+        lists, key_scratch, threads, particles, [](std::uint64_t x) { return x; }, emit_pair);
   }
   if (out.size() < upper / 2) {  // (repeats in a candidate list of one's own)
     out.i.shrink_to_fit();
@@ -346,20 +411,26 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   report.seconds_output = omp_get_wtime() - t4;
 }
 
-}  // namespace
-
-ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
-                          const ScreenOptions& given, ScreenedPairs& out) {
+// screen_pairs, in a workspace's memory when kept is not null.
+ScreenReport screen_in(const ParticleStore& particles, const Box& box, const ScreenOptions& given,
+                       ScreenedPairs& out, ScreenWorkspace::Impl* kept) {
   const ScreenOptions options = checked(particles, box, given);
   ScreenReport report;
   report.particles = particles.size();
-  out = {};
+  if (kept) {
+    out.i.clear();
+    out.j.clear();
+    out.mu2.clear();
+  } else {
+    out = {};
+  }
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
   report.threads = threads;
   const double cutoff = options.cutoff;
 
   double t0 = omp_get_wtime();
-  const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
+  screen::CellLists lists =
+      screen::build_cell_lists(particles, box, cutoff, threads, kept ? &kept->cells : nullptr);
   report.size_classes = lists.grids.size();
   report.identical_shapes = lists.identical_shapes;
   report.one_type = lists.one_type;
@@ -367,7 +438,10 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   report.seconds_cells = t1 - t0;
 
   // Candidates and prefilters; the undecided pairs solved chunk by chunk.
-  std::vector<ThreadPairs> per_thread(static_cast<std::size_t>(threads));
+  std::vector<ThreadPairs> own;
+  std::vector<ThreadPairs>& per_thread = kept ? kept->threads : own;
+  per_thread.resize(static_cast<std::size_t>(threads));
+  for (ThreadPairs& t : per_thread) t.start();
   screen::search_candidates<true>(
       lists, threads, options.progress,
       [&](int thread, const screen::Candidate& c) {
@@ -387,8 +461,61 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
         solve_waiting(mine, options);
       });
   if (options.progress) options.progress(1);
-  finish(per_thread, options, threads, particles.size(), t1, report, out);
+  finish(per_thread, options, threads, particles.size(), t1, report, out, kept);
+  if (kept) kept->cells.grids = std::move(lists.grids);
   return report;
+}
+
+}  // namespace
+
+ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
+                          const ScreenOptions& options, ScreenedPairs& out) {
+  return screen_in(particles, box, options, out, nullptr);
+}
+
+ScreenWorkspace::ScreenWorkspace() : impl_(std::make_unique<Impl>()) {}
+ScreenWorkspace::~ScreenWorkspace() = default;
+ScreenWorkspace::ScreenWorkspace(ScreenWorkspace&&) noexcept = default;
+ScreenWorkspace& ScreenWorkspace::operator=(ScreenWorkspace&&) noexcept = default;
+
+std::size_t ScreenWorkspace::bytes() const noexcept {
+  if (!impl_) return 0;
+  std::size_t total = impl_->cells.bytes();
+  for (const ThreadPairs& t : impl_->threads)
+    total += t.undecided.capacity() * sizeof(Undecided) +
+             t.found.capacity() * sizeof(std::uint64_t) + t.found_mu2.capacity() * sizeof(double) +
+             t.batch.size() * 15 * sizeof(double) + t.status.capacity() * sizeof(Status) +
+             t.overlap.capacity() + t.mu2.capacity() * sizeof(double);
+  for (const auto* lists : {&impl_->keys, &impl_->key_scratch})
+    for (const auto& l : *lists) total += l.capacity() * sizeof(std::uint64_t);
+  for (const auto* lists : {&impl_->keyed, &impl_->keyed_scratch})
+    for (const auto& l : *lists) total += l.capacity() * sizeof(std::pair<std::uint64_t, double>);
+  return total;
+}
+
+void ScreenWorkspace::release() noexcept {
+  if (!impl_) return;
+  impl_->cells = screen::CellListMemory();
+  std::vector<ThreadPairs>().swap(impl_->threads);
+  std::vector<std::vector<std::uint64_t>>().swap(impl_->keys);
+  std::vector<std::vector<std::uint64_t>>().swap(impl_->key_scratch);
+  std::vector<std::vector<std::pair<std::uint64_t, double>>>().swap(impl_->keyed);
+  std::vector<std::vector<std::pair<std::uint64_t, double>>>().swap(impl_->keyed_scratch);
+}
+
+ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
+                          const ScreenOptions& options, ScreenedPairs& out,
+                          ScreenWorkspace& workspace) {
+  if (!workspace.impl_) throw std::invalid_argument("screen_pairs: the workspace was moved from");
+  ScreenWorkspace::Impl& kept = *workspace.impl_;
+  if (kept.busy.exchange(true))
+    throw std::logic_error(
+        "screen_pairs: the workspace is in use by another call (one call at a time)");
+  struct Release {
+    std::atomic<bool>& busy;
+    ~Release() { busy = false; }
+  } release{kept.busy};
+  return screen_in(particles, box, options, out, &kept);
 }
 
 ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
@@ -448,7 +575,7 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
     errors.run([&] { solve_waiting(mine, options); });
   }
   errors.rethrow_if_failed();
-  finish(per_thread, options, threads, particles.size(), t1, report, out);
+  finish(per_thread, options, threads, particles.size(), t1, report, out, nullptr);
   return report;
 }
 
