@@ -167,6 +167,29 @@ def test_threads_do_not_change_the_pairs():
     assert np.array_equal(one.pairs, two.pairs) and np.array_equal(one.mu2, two.mu2)
 
 
+def test_a_workspace_reused_across_scenes_gives_the_brute_force_pairs():
+    workspace = pw.ScreenWorkspace()
+    assert workspace.bytes == 0
+    steps = [(600, 5, 10.0, 1.0, True), (450, 6, 8.0, 1.3, False), (900, 7, 12.0, 1.1, True),
+             (600, 5, 10.0, 1.0, False)]
+    for n, seed, length, cutoff, with_mu2 in steps:
+        positions, orientations, axes = random_scene(n, seed, length)
+        box = pw.Box(length, length, length)
+        res = pw.screen(positions, orientations, axes, box=box, cutoff=cutoff, with_mu2=with_mu2,
+                        workspace=workspace)
+        pairs, mu2 = brute_force_pairs(positions, pw.quadratic_form(axes, orientations), box,
+                                       cutoff)
+        assert len(pairs) > 50
+        assert np.array_equal(res.pairs, pairs)
+        if with_mu2:
+            assert np.allclose(res.mu2, mu2, rtol=1e-12)
+        assert workspace.bytes > n * 8
+    workspace.release()
+    assert workspace.bytes == 0
+    with pytest.raises(TypeError, match="ScreenWorkspace"):
+        pw.screen(positions, orientations, axes, box=box, workspace=object())
+
+
 DATA = __import__("pathlib").Path(__file__).resolve().parents[2] / "tests" / "data"
 
 

@@ -551,8 +551,12 @@ py::dict screened(const pwcontact::ScreenedPairs& pairs, std::size_t n, bool wit
 py::dict screen(const py::object& positions, const py::object& orientations,
                 const py::object& semi_axes, const py::object& q, const py::object& type_semi_axes,
                 const py::object& type_id, const py::object& box, double cutoff, bool with_mu2,
-                int threads) {
+                int threads, const py::object& workspace) {
   const int used = thread_count(threads);
+  // (Cast before the GIL is let go; a workspace already serving a call from
+  // another thread refuses this one with std::logic_error: RuntimeError.)
+  pwcontact::ScreenWorkspace* kept =
+      workspace.is_none() ? nullptr : &workspace.cast<pwcontact::ScreenWorkspace&>();
   pwcontact::ParticleStore store =
       make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
   const pwcontact::Box b = make_box(box);
@@ -564,7 +568,8 @@ py::dict screen(const py::object& positions, const py::object& orientations,
   pwcontact::ScreenReport report;
   {
     py::gil_scoped_release release;
-    report = pwcontact::screen_pairs(store, b, options, pairs);
+    report = kept ? pwcontact::screen_pairs(store, b, options, pairs, *kept)
+                  : pwcontact::screen_pairs(store, b, options, pairs);
   }
   return screened(pairs, store.size(), with_mu2, report);
 }
@@ -1040,7 +1045,11 @@ PYBIND11_MODULE(_pwcontact, m) {
   m.def("quadratic_form", &quadratic_form, py::arg("semi_axes"), py::arg("orientation"));
   m.def("screen", &screen, py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"),
         py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"),
-        py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"));
+        py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"), py::arg("workspace"));
+  py::class_<pwcontact::ScreenWorkspace>(m, "ScreenWorkspace")
+      .def(py::init<>())
+      .def_property_readonly("bytes", &pwcontact::ScreenWorkspace::bytes)
+      .def("release", &pwcontact::ScreenWorkspace::release);
 #if PWCONTACT_WITH_MPI
   m.attr("with_mpi") = true;
   m.def("screen_mpi", &screen_mpi, py::arg("positions"), py::arg("orientations"),
