@@ -83,7 +83,8 @@ class HardParticleMC {
   // smallest mu of any pair (by screen_pairs with mu^2, cutoff 1.1; 1.1 when
   // none is below; no compression closer than 1e-6 to contact): every
   // pair's mu becomes mu s >= sqrt(mu_min) > 1, so no overlap arises.
-  // Returns the packing fraction.
+  // Returns the packing fraction. Its screens reuse the memory of the one
+  // before (a ScreenWorkspace the state keeps).
   double compress();
   // Sweeps and compressions in turn until the packing fraction is reached,
   // at most max_sweeps sweeps (std::runtime_error beyond, saying how far it

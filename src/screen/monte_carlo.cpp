@@ -69,6 +69,10 @@ struct HardParticleMC::State {
   double volume = 0;  // of the particles
   double translation = 0, rotation = 0;
   std::size_t sweeps = 0;
+  // compress()'s screens, one a sweep in compress_to_packing: the memory of
+  // the last one kept for the next.
+  ScreenWorkspace workspace;
+  ScreenedPairs near;
 
   int threads() const { return options.threads > 0 ? options.threads : omp_get_max_threads(); }
 
@@ -329,15 +333,14 @@ double HardParticleMC::compress() {
   State& s = *state_;
   const double target = s.options.packing;
   const double now_packing = packing();
-  ScreenedPairs pairs;
   ScreenOptions options;
   options.cutoff = 1.1;
   options.with_mu2 = true;
   options.threads = s.options.threads;
   options.batch = s.options.batch;
-  screen_pairs(s.scene->particles(), s.box, options, pairs);
+  screen_pairs(s.scene->particles(), s.box, options, s.near, s.workspace);
   double mu2_min = 1.21;
-  for (double m : pairs.mu2) mu2_min = std::min(mu2_min, m);
+  for (double m : s.near.mu2) mu2_min = std::min(mu2_min, m);
   if (!(mu2_min >= 1))
     throw std::logic_error("HardParticleMC::compress: the state overlaps (mu^2 " +
                            std::to_string(mu2_min) + ")");
