@@ -108,10 +108,12 @@ struct MovingScene::Impl {
 
   // Periodic boxes: the reach of two particles of bounding radius `radius`
   // at the largest cutoff must fit twice across the box.
+  // (The box's perpendicular widths are computed once, at construction:
+  // recomputed here, they were a cost of every move.)
+  std::array<double, 3> widths = {0, 0, 0};
   void check_box(double radius, double cutoff, const char* who) const {
     if (!box.periodic) return;
     const double reach = cutoff * 2 * radius;
-    const std::array<double, 3> widths = box.perpendicular_widths();
     for (int k = 0; k < 3; ++k)
       if (box.periodic_along(k) && !(2 * reach <= widths[k]))
         throw std::invalid_argument(
@@ -563,6 +565,7 @@ MovingScene::MovingScene(ParticleStore particles, const Box& box, const MovingSc
     throw std::invalid_argument("MovingScene: at most 2^31 - 1 particles");
   impl_->store = std::move(particles);
   impl_->box = box;
+  if (box.periodic) impl_->widths = box.perpendicular_widths();
   impl_->options = options;
   impl_->solve_options = options.batch;
   impl_->solve_options.isa = resolve_isa(options.batch.isa);
