@@ -267,10 +267,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     for (std::size_t i = chunk(p); i < chunk(p + 1); ++i)
       cell[i] = next[first_cell[size_class[i]] + cell[i]]++;
   }
-  if (!memory) std::vector<std::vector<std::uint32_t>>().swap(place);
-    // The copies in cell order, read in particle order (streaming reads,
-    // scattered writes of a half and a whole cache line per particle: measured
-    // faster than gathering them in cell order).
+  if (!memory) {  // (else kept for the next build)
+    std::vector<std::vector<std::uint32_t>>().swap(place);
+  }
+
+  // The copies in cell order, read in particle order (streaming reads,
+  // scattered writes of a half and a whole cache line per particle: measured
+  // faster than gathering them in cell order).
 #pragma omp parallel for num_threads(threads)
   for (std::size_t i = 0; i < n; ++i) {
     ClassGrid& grid = lists.grids[size_class[i]];

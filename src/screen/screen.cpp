@@ -305,7 +305,7 @@ struct SortMemory {
 
 // Sums what the threads counted into the report, and the pairs found,
 // sorted by (i, j) and each once, into out. t1: when the search began.
-// kept: a workspace's memory (out's storage then reused too), or null.
+// kept: a workspace's memory, or null. (out: emptied by the caller.)
 void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, int threads,
             std::size_t particles, double t1, ScreenReport& report, ScreenedPairs& out,
             ScreenWorkspace::Impl* kept) {
@@ -353,13 +353,6 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   auto& key_scratch = kept ? kept->key_scratch : own.key_scratch;
   auto& keyed = kept ? kept->keyed : own.keyed;
   auto& keyed_scratch = kept ? kept->keyed_scratch : own.keyed_scratch;
-  if (kept) {
-    out.i.clear();
-    out.j.clear();
-    out.mu2.clear();
-  } else {
-    out = {};
-  }
   out.i.reserve(upper);
   out.j.reserve(upper);
   auto emit_pair = [&out](std::uint64_t key) {
