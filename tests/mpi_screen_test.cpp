@@ -81,6 +81,12 @@ int next_to_owner(const ParticleStore& one) {
   return (c[0] * next_dims[1] + c[1]) * next_dims[2] + c[2];
 }
 
+// One workspace per rank, used by every other check: its memory grows and
+// shrinks over scenes of other sizes, boxes and size classes, and the pairs
+// must not change.
+pwcontact::ScreenWorkspace* workspace = nullptr;
+int checks = 0;
+
 // Screens the scene on all ranks and compares on rank 0.
 pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool with_mu2,
                                         Start start = Start::round_robin, bool tags32 = false) {
@@ -106,8 +112,13 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
     tags_32.push_back(std::uint32_t(k));
   }
   pwcontact::mpi::TaggedPairs local;
+  const bool reused = workspace && checks++ % 2 == 1;
   const pwcontact::mpi::DistributedReport report =
-      tags32
+      reused ? (tags32 ? pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, mine, tags_32, scene.box,
+                                                      options, local, *workspace)
+                       : pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, mine, tags, scene.box,
+                                                      options, local, *workspace))
+      : tags32
           ? pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, mine, tags_32, scene.box, options, local)
           : pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, mine, tags, scene.box, options, local);
   // Local pairs: sorted, i < j.
@@ -148,10 +159,11 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
   }
   if (start == Start::next_to_owner && !report.migration_by_neighbours)
     why = "migrated by MPI_Alltoallv, though every particle went to a neighbour";
-  std::printf("%-40s cutoff %.2f%s %d ranks (%d x %d x %d): %zu pairs, %llu ghosts%s: %s\n",
+  std::printf("%-40s cutoff %.2f%s %d ranks (%d x %d x %d): %zu pairs, %llu ghosts%s%s: %s\n",
               scene.name.c_str(), cutoff, with_mu2 ? " mu2" : "", ranks, report.dims[0],
               report.dims[1], report.dims[2], expected.size(), total_ghosts,
               report.migration_by_neighbours ? "" : " (migrated by alltoallv)",
+              reused ? " (workspace reused)" : "",
               why.empty() ? "same" : ("DIFFERENT: " + why).c_str());
   if (!why.empty()) ++failures;
   return report;
@@ -228,6 +240,8 @@ int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  pwcontact::ScreenWorkspace rank_workspace;
+  workspace = &rank_workspace;
   try {
     const Box cube = Box::periodic_box(24, 20, 22);
     const Scene periodic =

@@ -91,6 +91,17 @@ DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint32_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out);
+// The same, each rank's local screen in its own workspace (screen.hpp: the
+// memory of the rank's last screen reused), for a simulation that screens
+// every so many steps: the same pairs.
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint64_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out,
+                               ScreenWorkspace& workspace);
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint32_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out,
+                               ScreenWorkspace& workspace);
 
 // The pairs of every rank on `root`, sorted by i then j (for tags 0 .. N - 1:
 // the order and the numbers of screen_pairs on the whole scene); empty on

@@ -2,7 +2,8 @@
 under mpirun by ctest (python.screen_mpi_<N>_ranks): every rank makes the
 same scenes, passes its share of the particles (round robin, with tags; or
 contiguous blocks, numbered by rank without tags), and rank 0 compares the
-gathered pairs and mu^2 with screen() on the whole scene, exactly. Exits
+gathered pairs and mu^2 with screen() on the whole scene, exactly (the
+round-robin screens through one ScreenWorkspace per rank). Exits
 non-zero (on every rank) when a check fails."""
 import sys
 
@@ -38,6 +39,7 @@ boxes = {
     "triclinic": [12.0, 12.0, 12.0, 0.3, 0.2, 0.1],
     "open": None,
 }
+workspace = pw.ScreenWorkspace()  # this rank's, reused by the round-robin screens
 for name, box in boxes.items():
     positions, orientations, semi_axes = scene(4000, 7, 12.0)
     whole = pw.screen(positions, orientations, semi_axes, box=box, cutoff=1.1, with_mu2=True,
@@ -45,7 +47,9 @@ for name, box in boxes.items():
     # Round robin with tags.
     mine = np.arange(rank, len(positions), size)
     got = pw.screen(positions[mine], orientations[mine], semi_axes[mine], box=box, cutoff=1.1,
-                    with_mu2=True, threads=1, comm=comm, tags=mine, gather=True)
+                    with_mu2=True, threads=1, comm=comm, tags=mine, gather=True,
+                    workspace=workspace)
+    check(workspace.bytes > 0, f"{name}: the workspace holds nothing after a screen")
     if rank == 0:
         check(len(whole) > 500, f"{name}: only {len(whole)} pairs")
         check(got.pairs.dtype == np.uint64, f"{name}: pairs of dtype {got.pairs.dtype}")

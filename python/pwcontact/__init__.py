@@ -461,13 +461,15 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     raised on every rank.
 
     workspace: a ScreenWorkspace kept across calls (a simulation screening
-    every so many steps), whose memory each screen reuses; the same pairs.
+    every so many steps), whose memory each screen reuses (with comm: each
+    rank's local screen, a workspace per rank); the same pairs.
     """
     positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
         "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored)
+    if workspace is not None and not isinstance(workspace, ScreenWorkspace):
+        raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
+    kept = None if workspace is None else workspace._workspace
     if comm is not None:
-        if workspace is not None:
-            raise ValueError("workspace is for screen() in one process, not screen(comm=...)")
         if not _core.with_mpi:
             raise RuntimeError("screen(comm=...): this pwcontact was built without MPI "
                                "(PWCONTACT_BUILD_MPI, with libopenmpi-dev installed)")
@@ -475,15 +477,13 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
             raise TypeError(f"comm must be an mpi4py communicator, got {type(comm).__name__}")
         raw = _core.screen_mpi(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                                None if b is None else b._core(), float(cutoff), bool(with_mu2),
-                               int(threads), int(comm.py2f()), tags, bool(gather))
+                               int(threads), int(comm.py2f()), tags, bool(gather), kept)
         return DistributedScreenResult(raw)
     if tags is not None or gather:
         raise ValueError("tags and gather are for screen(comm=...) over MPI ranks")
-    if workspace is not None and not isinstance(workspace, ScreenWorkspace):
-        raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                        None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads),
-                       None if workspace is None else workspace._workspace)
+                       kept)
     return ScreenResult(raw, positions, b)
 
 
@@ -494,7 +494,8 @@ class ScreenWorkspace:
     one before (about 155 bytes a particle) instead of fresh pages. The
     answers are the same. It holds that memory until release() or its end
     (``bytes`` says how much); one screen at a time (a second call from
-    another thread meanwhile raises RuntimeError). Not for screen(comm=...).
+    another thread meanwhile raises RuntimeError). With screen(comm=...),
+    each rank passes its own.
     """
 
     def __init__(self):

@@ -213,7 +213,8 @@ std::size_t exchange(const Outbox& outbox, MPI_Comm comm, MPI_Comm graph, MPI_Da
 template <class Tag>
 DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particles,
                                      const std::vector<Tag>& tags, const Box& box,
-                                     const ScreenOptions& options, TaggedPairs& out) {
+                                     const ScreenOptions& options, TaggedPairs& out,
+                                     ScreenWorkspace* workspace) {
   out = {};
   DistributedReport report;
   report.given = particles.size();
@@ -521,7 +522,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   try {
     store.reserve(entries.size());
     for (const Entry& e : entries) store.add_particle(ParticleRecord::read(e.record));
-    report.screen = pwcontact::screen_pairs(store, box, options, pairs);
+    report.screen = workspace ? pwcontact::screen_pairs(store, box, options, pairs, *workspace)
+                              : pwcontact::screen_pairs(store, box, options, pairs);
   } catch (const std::exception& e) {
     error = e.what();
   }
@@ -544,13 +546,27 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint64_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out) {
-  return screen_distributed(comm, particles, tags, box, options, out);
+  return screen_distributed(comm, particles, tags, box, options, out, nullptr);
 }
 
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint32_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out) {
-  return screen_distributed(comm, particles, tags, box, options, out);
+  return screen_distributed(comm, particles, tags, box, options, out, nullptr);
+}
+
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint64_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out,
+                               ScreenWorkspace& workspace) {
+  return screen_distributed(comm, particles, tags, box, options, out, &workspace);
+}
+
+DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
+                               const std::vector<std::uint32_t>& tags, const Box& box,
+                               const ScreenOptions& options, TaggedPairs& out,
+                               ScreenWorkspace& workspace) {
+  return screen_distributed(comm, particles, tags, box, options, out, &workspace);
 }
 
 TaggedPairs gather_pairs(MPI_Comm comm, const TaggedPairs& local, int root) {

@@ -583,7 +583,10 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
                     const py::object& semi_axes, const py::object& q,
                     const py::object& type_semi_axes, const py::object& type_id,
                     const py::object& box, double cutoff, bool with_mu2, int threads,
-                    std::int64_t comm_handle, const py::object& tags_in, bool gather) {
+                    std::int64_t comm_handle, const py::object& tags_in, bool gather,
+                    const py::object& workspace) {
+  pwcontact::ScreenWorkspace* kept =
+      workspace.is_none() ? nullptr : &workspace.cast<pwcontact::ScreenWorkspace&>();
   int initialized = 0, finalized = 0;
   MPI_Initialized(&initialized);
   MPI_Finalized(&finalized);
@@ -620,7 +623,8 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
   pwcontact::mpi::DistributedReport report;
   {
     py::gil_scoped_release release;
-    report = pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs);
+    report = kept ? pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs, *kept)
+                  : pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs);
     if (gather) pairs = pwcontact::mpi::gather_pairs(comm, pairs);
   }
   const std::size_t m = pairs.size();
@@ -1055,7 +1059,7 @@ PYBIND11_MODULE(_pwcontact, m) {
   m.def("screen_mpi", &screen_mpi, py::arg("positions"), py::arg("orientations"),
         py::arg("semi_axes"), py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"),
         py::arg("box"), py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"), py::arg("comm"),
-        py::arg("tags"), py::arg("gather"));
+        py::arg("tags"), py::arg("gather"), py::arg("workspace"));
 #else
   m.attr("with_mpi") = false;
 #endif
