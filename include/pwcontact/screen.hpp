@@ -274,8 +274,9 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 // many steps passes the same workspace (and the same out) to each call: the
 // calls after the first reuse that memory instead of asking the system for
 // fresh pages, which the kernel maps and clears on their first touch (on
-// the 1M demo scene with 1 thread that was about a sixth of a screen; see
-// README). The answers are the same with or without one. The workspace
+// the 1M demo scene measured 2-7 % of a screen with 1 thread, more at 4M
+// and varying with the host: see README). The answers are the same with or
+// without one. The workspace
 // holds the memory of the largest screen it served until release() or its
 // destruction; bytes() tells how much. One screen at a time: a second call
 // while one runs throws std::logic_error (and release() must not run

@@ -72,7 +72,6 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     screen_options.with_mu2 = true;
     screen_options.threads = threads;
     screen_options.batch = options_.batch;
-    const ScreenedPairs& listed = listed_;
     const ScreenReport screened = screen_pairs(particles, box, screen_options, listed_, workspace_);
     box_ = box;
     for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
@@ -80,14 +79,14 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     inscribed_ = particles.inscribed_radius();
     ++rebuilds_;
     out = ScreenedPairs();
-    for (std::size_t k = 0; k < listed.size(); ++k)
-      if (listed.mu2[k] < cutoff * cutoff) {
-        out.i.push_back(listed.i[k]);
-        out.j.push_back(listed.j[k]);
-        out.mu2.push_back(listed.mu2[k]);
+    for (std::size_t k = 0; k < listed_.size(); ++k)
+      if (listed_.mu2[k] < cutoff * cutoff) {
+        out.i.push_back(listed_.i[k]);
+        out.j.push_back(listed_.j[k]);
+        out.mu2.push_back(listed_.mu2[k]);
       }
     report.rebuilt = true;
-    report.listed = listed.size();
+    report.listed = listed_.size();
     // The list taken over (its old arrays left to the next rebuild's screen).
     first_.swap(listed_.i);
     second_.swap(listed_.j);

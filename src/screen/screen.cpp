@@ -283,6 +283,13 @@ void sorted_union(std::vector<std::vector<T>>& lists, std::vector<std::vector<T>
   }
 }
 
+// The sorts' lists and second arrays (pair keys alone, or with mu^2): a
+// workspace's, or the call's own.
+struct SortMemory {
+  std::vector<std::vector<std::uint64_t>> keys, key_scratch;
+  std::vector<std::vector<std::pair<std::uint64_t, double>>> keyed, keyed_scratch;
+};
+
 }  // namespace
 
 // What a screen keeps for the next (see ScreenWorkspace): the cell lists'
@@ -290,18 +297,11 @@ void sorted_union(std::vector<std::vector<T>>& lists, std::vector<std::vector<T>
 struct ScreenWorkspace::Impl {
   screen::CellListMemory cells;
   std::vector<ThreadPairs> threads;
-  std::vector<std::vector<std::uint64_t>> keys, key_scratch;
-  std::vector<std::vector<std::pair<std::uint64_t, double>>> keyed, keyed_scratch;
+  SortMemory sort;
   std::atomic<bool> busy{false};
 };
 
 namespace {
-
-// The sorts' lists and second arrays: a workspace's, or the call's own.
-struct SortMemory {
-  std::vector<std::vector<std::uint64_t>> keys, key_scratch;
-  std::vector<std::vector<std::pair<std::uint64_t, double>>> keyed, keyed_scratch;
-};
 
 // Sums what the threads counted into the report, and the pairs found,
 // sorted by (i, j) and each once, into out. t1: when the search began.
@@ -349,10 +349,7 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   std::size_t upper = 0;  // the pairs found, counted with repeats
   for (const ThreadPairs& t : per_thread) upper += t.found.size();
   SortMemory own;
-  auto& keys = kept ? kept->keys : own.keys;
-  auto& key_scratch = kept ? kept->key_scratch : own.key_scratch;
-  auto& keyed = kept ? kept->keyed : own.keyed;
-  auto& keyed_scratch = kept ? kept->keyed_scratch : own.keyed_scratch;
+  SortMemory& sort = kept ? kept->sort : own;
   out.i.reserve(upper);
   out.j.reserve(upper);
   auto emit_pair = [&out](std::uint64_t key) {
@@ -361,7 +358,7 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   };
   if (options.with_mu2) {
     out.mu2.reserve(upper);
-    std::vector<std::vector<std::pair<std::uint64_t, double>>>& lists = keyed;
+    std::vector<std::vector<std::pair<std::uint64_t, double>>>& lists = sort.keyed;
     lists.resize(per_thread.size());
     for (std::size_t t = 0; t < per_thread.size(); ++t) {
       ThreadPairs& mine = per_thread[t];
@@ -378,7 +375,7 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
       }
     }
     sorted_union(
-        lists, keyed_scratch, threads, particles, [](const auto& x) { return x.first; },
+        lists, sort.keyed_scratch, threads, particles, [](const auto& x) { return x.first; },
         [&](const std::pair<std::uint64_t, double>& x) {
           emit_pair(x.first);
           out.mu2.push_back(x.second);
@@ -386,14 +383,14 @@ void finish(std::vector<ThreadPairs>& per_thread, const ScreenOptions& options, 
   } else {
     // (The threads' found pairs swapped in: their buffers then hold the
     // lists' old storage, emptied, for the next screen.)
-    std::vector<std::vector<std::uint64_t>>& lists = keys;
+    std::vector<std::vector<std::uint64_t>>& lists = sort.keys;
     lists.resize(per_thread.size());
     for (std::size_t t = 0; t < per_thread.size(); ++t) {
       lists[t].clear();
       lists[t].swap(per_thread[t].found);
     }
     sorted_union(
-        lists, key_scratch, threads, particles, [](std::uint64_t x) { return x; }, emit_pair);
+        lists, sort.key_scratch, threads, particles, [](std::uint64_t x) { return x; }, emit_pair);
   }
   if (out.size() < upper / 2) {  // (repeats in a candidate list of one's own)
     out.i.shrink_to_fit();
@@ -479,9 +476,9 @@ std::size_t ScreenWorkspace::bytes() const noexcept {
              t.found.capacity() * sizeof(std::uint64_t) + t.found_mu2.capacity() * sizeof(double) +
              t.batch.size() * 15 * sizeof(double) + t.status.capacity() * sizeof(Status) +
              t.overlap.capacity() + t.mu2.capacity() * sizeof(double);
-  for (const auto* lists : {&impl_->keys, &impl_->key_scratch})
+  for (const auto* lists : {&impl_->sort.keys, &impl_->sort.key_scratch})
     for (const auto& l : *lists) total += l.capacity() * sizeof(std::uint64_t);
-  for (const auto* lists : {&impl_->keyed, &impl_->keyed_scratch})
+  for (const auto* lists : {&impl_->sort.keyed, &impl_->sort.keyed_scratch})
     for (const auto& l : *lists) total += l.capacity() * sizeof(std::pair<std::uint64_t, double>);
   return total;
 }
@@ -490,10 +487,7 @@ void ScreenWorkspace::release() noexcept {
   if (!impl_) return;
   impl_->cells = screen::CellListMemory();
   std::vector<ThreadPairs>().swap(impl_->threads);
-  std::vector<std::vector<std::uint64_t>>().swap(impl_->keys);
-  std::vector<std::vector<std::uint64_t>>().swap(impl_->key_scratch);
-  std::vector<std::vector<std::pair<std::uint64_t, double>>>().swap(impl_->keyed);
-  std::vector<std::vector<std::pair<std::uint64_t, double>>>().swap(impl_->keyed_scratch);
+  impl_->sort = SortMemory();
 }
 
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
