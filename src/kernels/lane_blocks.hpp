@@ -467,12 +467,36 @@ struct LanePositions {
   }
 };
 
+// Compressing four lanes by a mask without AVX-512: for each of the 16
+// masks, the source lane of each destination lane (the chosen lanes first,
+// in order; the rest repeat lane 0, stored past the count and written over
+// later), as 32-bit lane indices of a 128-bit register (`lanes`) and as the
+// pairs of 32-bit halves of a register of four doubles (`halves`).
+struct CompressFour {
+  alignas(16) std::int32_t lanes[16][4];
+  alignas(32) std::int32_t halves[16][8];
+  constexpr CompressFour() : lanes(), halves() {
+    for (int mask = 0; mask < 16; ++mask) {
+      int to = 0;
+      for (int from = 0; from < 4; ++from)
+        if (mask & (1 << from)) {
+          lanes[mask][to] = from;
+          halves[mask][2 * to] = 2 * from;
+          halves[mask][2 * to + 1] = 2 * from + 1;
+          ++to;
+        }
+      for (; to < 4; ++to) halves[mask][2 * to + 1] = 1;
+    }
+  }
+};
+inline constexpr CompressFour compress_four{};
+
 // Appends the lanes of one group selected by `keep` to the kept lanes, given
 // copies of the group's registers in the kept arrays' order (copies, so that
 // no register's address escapes and the compiler keeps them in registers)
 // and the lanes' positions:
-// AVX-512 compresses them with one masked store per array, other
-// instruction sets copy lane by lane.
+// AVX-512 compresses them with one masked store per array, AVX2 with a
+// permutation per array, SSE2 copies lane by lane.
 template <class Arch, class T, int State>
 PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_bool<T, Arch>& keep,
                                  const xsimd::batch<T, Arch>* values, const LanePositions& at) {
@@ -507,6 +531,44 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
       _mm512_storeu_si512(kept.index + first, _mm512_maskz_compress_epi32(mask, idx));
     }
     kept.count += std::size_t(__builtin_popcount(unsigned(mask)));
+  } else if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+    // Compress by permutations looked up from the mask (compress_four) and
+    // store whole registers: four doubles, or eight floats as two halves of
+    // four. (Copied lane by lane through the stack instead, the pw85
+    // family's double answers, half of whose lanes are kept, took ~20 %
+    // longer.)
+    unsigned mask;
+    if constexpr (std::is_same<T, double>::value)
+      mask = unsigned(_mm256_movemask_pd(keep.data));
+    else
+      mask = unsigned(_mm256_movemask_ps(keep.data));
+    kept.count = first + std::size_t(__builtin_popcount(mask));
+    // The positions lane by lane, from the mask's bits (a listed index array
+    // may end with the real lanes).
+    std::size_t c = first;
+    for (unsigned m = mask; m != 0; m &= m - 1)
+      kept.index[c++] = std::uint32_t(at[std::size_t(__builtin_ctz(m))]);
+    if constexpr (std::is_same<T, double>::value) {
+      const __m256i permutation =
+          _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[mask]));
+      for (int k = 0; k < arrays; ++k)
+        _mm256_storeu_pd(kept.values[k] + first, _mm256_castps_pd(_mm256_permutevar8x32_ps(
+                                                     _mm256_castpd_ps(values[k]), permutation)));
+    } else {
+      const unsigned low = mask & 0xFu, high = mask >> 4;
+      const std::size_t second = first + std::size_t(__builtin_popcount(low));
+      const __m128i low_lanes =
+          _mm_load_si128(reinterpret_cast<const __m128i*>(compress_four.lanes[low]));
+      const __m128i high_lanes =
+          _mm_load_si128(reinterpret_cast<const __m128i*>(compress_four.lanes[high]));
+      for (int k = 0; k < arrays; ++k) {
+        const __m256 v = values[k];
+        _mm_storeu_ps(kept.values[k] + first,
+                      _mm_permutevar_ps(_mm256_castps256_ps128(v), low_lanes));
+        _mm_storeu_ps(kept.values[k] + second,
+                      _mm_permutevar_ps(_mm256_extractf128_ps(v, 1), high_lanes));
+      }
+    }
   } else {
     bool lanes[W];
     keep.store_unaligned(lanes);

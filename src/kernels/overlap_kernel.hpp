@@ -462,30 +462,6 @@ __attribute__((noinline)) void overlap_prefilter_block(const PairSpan<In>& span,
   block.prefilter(span, from, position, real, out);
 }
 
-// Compressing four lanes by a mask without AVX-512: for each of the 16
-// masks, the source lane of each destination lane (the chosen lanes first,
-// in order; the rest repeat lane 0, stored past the count and written over
-// later), as 32-bit lane indices of a 128-bit register (`lanes`) and as the
-// pairs of 32-bit halves of a register of four doubles (`halves`).
-struct CompressFour {
-  alignas(16) std::int32_t lanes[16][4];
-  alignas(32) std::int32_t halves[16][8];
-  constexpr CompressFour() : lanes(), halves() {
-    for (int mask = 0; mask < 16; ++mask) {
-      int to = 0;
-      for (int from = 0; from < 4; ++from)
-        if (mask & (1 << from)) {
-          lanes[mask][to] = from;
-          halves[mask][2 * to] = 2 * from;
-          halves[mask][2 * to + 1] = 2 * from + 1;
-          ++to;
-        }
-      for (; to < 4; ++to) halves[mask][2 * to + 1] = 1;
-    }
-  }
-};
-inline constexpr CompressFour compress_four_doubles{};
-
 // Copies the pairs the first pass left (status needs_fallback) into the
 // scratch arrays beyond the kept lanes', with their chunk positions.
 template <class Arch, class In>
@@ -543,7 +519,7 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
         const unsigned left = unsigned(_mm_movemask_epi8(_mm_cvtsi32_si128(int(bytes)))) & 0xFu;
         if (left == 0) continue;
         const __m256i permutation =
-            _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four_doubles.halves[left]));
+            _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[left]));
         for (int k = 0; k < pair_components; ++k) {
           const In* column = component(in, k) + i;
           __m256d values;
@@ -555,10 +531,11 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
                                                    _mm256_castpd_ps(values), permutation)));
         }
         const __m128i at = _mm_add_epi32(_mm_set1_epi32(int(i)), _mm_setr_epi32(0, 1, 2, 3));
-        _mm_storeu_si128(reinterpret_cast<__m128i*>(positions + count),
-                         _mm_castps_si128(_mm_permutevar_ps(
-                             _mm_castsi128_ps(at), _mm_load_si128(reinterpret_cast<const __m128i*>(
-                                                       compress_four_doubles.lanes[left])))));
+        _mm_storeu_si128(
+            reinterpret_cast<__m128i*>(positions + count),
+            _mm_castps_si128(_mm_permutevar_ps(
+                _mm_castsi128_ps(at),
+                _mm_load_si128(reinterpret_cast<const __m128i*>(compress_four.lanes[left])))));
         count += std::size_t(__builtin_popcount(left));
       }
     }
