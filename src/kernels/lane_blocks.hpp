@@ -13,6 +13,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #include "kernels/kernel_api.hpp"
@@ -491,6 +492,31 @@ struct CompressFour {
 };
 inline constexpr CompressFour compress_four{};
 
+// AVX2: the mask bits of a register of W lanes, and those bits spread to
+// one byte each (0xFF for a set lane), lane 0 in the lowest byte.
+template <class Arch, class T>
+PWCONTACT_INLINE unsigned lane_bits(const xsimd::batch_bool<T, Arch>& flag) {
+  if constexpr (std::is_same<T, double>::value)
+    return unsigned(_mm256_movemask_pd(flag.data));
+  else
+    return unsigned(_mm256_movemask_ps(flag.data));
+}
+struct SpreadFour {
+  std::uint32_t bytes[16];
+  constexpr SpreadFour() : bytes() {
+    for (unsigned mask = 0; mask < 16; ++mask)
+      for (unsigned l = 0; l < 4; ++l)
+        if (mask & (1u << l)) bytes[mask] |= 0xFFu << (8 * l);
+  }
+};
+inline constexpr SpreadFour spread_four{};
+template <class Arch, class T>
+PWCONTACT_INLINE std::uint64_t lane_bytes(const xsimd::batch_bool<T, Arch>& flag) {
+  const unsigned bits = lane_bits<Arch, T>(flag);
+  return std::uint64_t(spread_four.bytes[bits & 0xFu]) |
+         (std::uint64_t(spread_four.bytes[(bits >> 4) & 0xFu]) << 32);
+}
+
 // Appends the lanes of one group selected by `keep` to the kept lanes, given
 // copies of the group's registers in the kept arrays' order (copies, so that
 // no register's address escapes and the compiler keeps them in registers)
@@ -537,11 +563,7 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
     // four. (Copied lane by lane through the stack instead, the pw85
     // family's double answers, half of whose lanes are kept, took ~20 %
     // longer.)
-    unsigned mask;
-    if constexpr (std::is_same<T, double>::value)
-      mask = unsigned(_mm256_movemask_pd(keep.data));
-    else
-      mask = unsigned(_mm256_movemask_ps(keep.data));
+    const unsigned mask = lane_bits<Arch, T>(keep);
     kept.count = first + std::size_t(__builtin_popcount(mask));
     // The positions lane by lane, from the mask's bits (a listed index array
     // may end with the real lanes).
@@ -622,6 +644,21 @@ PWCONTACT_INLINE void write_flags(std::uint8_t* target, const LanePositions& at,
       return;
     }
   }
+  if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+    if (!at.index && at.real == W) {
+      // The W bytes read, blended where `which` and written back whole (the
+      // chunk's bytes are this thread's alone), each lane's byte spread from
+      // its mask bit by a table.
+      const std::uint64_t written = lane_bytes<Arch, T>(which), set = lane_bytes<Arch, T>(flag);
+      const std::uint64_t bytes =
+          (set & (0x0101010101010101u * yes)) | (~set & (0x0101010101010101u * no));
+      std::uint64_t old = 0;
+      std::memcpy(&old, target + at.base, W);
+      const std::uint64_t blended = (old & ~written) | (bytes & written);
+      std::memcpy(target + at.base, &blended, W);
+      return;
+    }
+  }
   bool write[W], lanes[W];
   which.store_unaligned(write);
   flag.store_unaligned(lanes);
@@ -634,6 +671,8 @@ template <class Arch, class T>
 PWCONTACT_INLINE std::uint64_t count_lanes(const xsimd::batch_bool<T, Arch>& flag) {
   if constexpr (is_avx512<Arch>) {
     return std::uint64_t(__builtin_popcount(unsigned(flag.data)));
+  } else if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+    return std::uint64_t(__builtin_popcount(lane_bits<Arch, T>(flag)));
   } else {
     constexpr std::size_t W = xsimd::batch<T, Arch>::size;
     bool lanes[W];
