@@ -470,8 +470,8 @@ struct LanePositions {
 
 // Compressing four lanes by a mask without AVX-512: for each of the 16
 // masks, the source lane of each destination lane (the chosen lanes first,
-// in order; the rest repeat lane 0, stored past the count and written over
-// later), as 32-bit lane indices of a 128-bit register (`lanes`) and as the
+// in order; the rest repeat lane 0, stored past the count, where nothing
+// reads them), as 32-bit lane indices of a 128-bit register (`lanes`) and as the
 // pairs of 32-bit halves of a register of four doubles (`halves`).
 struct CompressFour {
   alignas(16) std::int32_t lanes[16][4];
@@ -521,8 +521,8 @@ PWCONTACT_INLINE std::uint64_t lane_bytes(const xsimd::batch_bool<T, Arch>& flag
 // copies of the group's registers in the kept arrays' order (copies, so that
 // no register's address escapes and the compiler keeps them in registers)
 // and the lanes' positions:
-// AVX-512 compresses them with one masked store per array, AVX2 with a
-// permutation per array, SSE2 copies lane by lane.
+// AVX-512 compresses each array in a register and stores it whole, AVX2
+// permutes each one and stores it whole, SSE2 copies lane by lane.
 template <class Arch, class T, int State>
 PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_bool<T, Arch>& keep,
                                  const xsimd::batch<T, Arch>* values, const LanePositions& at) {
@@ -565,8 +565,8 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
     // longer.)
     const unsigned mask = lane_bits<Arch, T>(keep);
     kept.count = first + std::size_t(__builtin_popcount(mask));
-    // The positions lane by lane, from the mask's bits (a listed index array
-    // may end with the real lanes).
+    // The positions lane by lane, from the mask's bits (a few integer
+    // stores; the listed ones would need a permutation of their own).
     std::size_t c = first;
     for (unsigned m = mask; m != 0; m &= m - 1)
       kept.index[c++] = std::uint32_t(at[std::size_t(__builtin_ctz(m))]);
