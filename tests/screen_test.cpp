@@ -1028,40 +1028,6 @@ TEST(Screen, CellListsBuiltInParallelGiveTheOneThreadAnswer) {
 // every screen's pairs are the brute force's, and its pairs, mu^2 and
 // counts exactly those of a screen without a workspace (the same arithmetic
 // in other memory).
-// clear() empties a store, types included, and keeps its arrays' memory: a
-// store refilled after it holds the new particles alone, with radii and
-// types as a fresh store gives them.
-TEST(ParticleStoreClear, EmptiesParticlesAndTypesAndKeepsTheMemory) {
-  ParticleStore store;
-  EXPECT_EQ(store.bytes(), 0u);
-  const std::uint32_t type = store.add_type({0.5, 0.2, 0.1});
-  for (int i = 0; i < 1000; ++i) store.add_typed({double(i), 0, 0}, type, {1, 0, 0, 0});
-  const std::size_t held = store.bytes();
-  EXPECT_GE(held, 1000 * (12 * sizeof(double) + sizeof(std::uint32_t)));
-  store.clear();
-  EXPECT_EQ(store.size(), 0u);
-  EXPECT_EQ(store.types(), 0u);
-  EXPECT_EQ(store.bytes(), held);
-
-  ParticleStore fresh;
-  for (ParticleStore* s : {&store, &fresh}) {
-    s->resize(2);
-    s->set_axes(0, {0, 0, 0}, {1, 2, 3}, {1, 0, 0, 0});
-    const std::uint32_t t = s->add_type({0.3, 0.3, 0.3});
-    EXPECT_EQ(t, 0u);
-    s->set_typed(1, {4, 0, 0}, t, {1, 0, 0, 0});
-  }
-  EXPECT_EQ(store.bytes(), held);  // within the capacity kept
-  ASSERT_EQ(store.size(), 2u);
-  EXPECT_EQ(store.types(), 1u);
-  for (std::size_t i = 0; i < 2; ++i) {
-    EXPECT_EQ(store.bounding_radius()[i], fresh.bounding_radius()[i]) << i;
-    EXPECT_EQ(store.inscribed_radius()[i], fresh.inscribed_radius()[i]) << i;
-    EXPECT_EQ(store.sphere_radius()[i], fresh.sphere_radius()[i]) << i;
-    for (int k = 0; k < 6; ++k) EXPECT_EQ(store.q(k)[i], fresh.q(k)[i]) << i << " " << k;
-  }
-}
-
 TEST(Screen, AWorkspaceReusedAcrossScenesGivesTheBruteForcesPairsEachTime) {
   struct Step {
     SceneSpec spec;

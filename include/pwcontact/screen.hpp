@@ -77,11 +77,6 @@ class ParticleStore {
  public:
   std::size_t size() const noexcept { return centre_[0].size(); }
   void reserve(std::size_t n);
-  // No particles and no types, the arrays' memory kept: a store refilled
-  // scene after scene (resize, then set) writes into pages it already has.
-  void clear() noexcept;
-  // The memory the per-particle arrays hold (their capacity), in bytes.
-  std::size_t bytes() const noexcept;
 
   // Q must be finite and positive definite (std::invalid_argument naming the
   // particle otherwise): a scene with an invalid particle has no answer.

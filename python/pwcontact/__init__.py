@@ -490,13 +490,12 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
 class ScreenWorkspace:
     """Memory one screen leaves for the next: pass the same workspace to
     screen(..., workspace=...) in a loop, and each call after the first
-    reuses the memory of the one before instead of fresh pages: the copy of
-    the arrays the screen takes (about 108 bytes a particle), the cell
-    lists' copies of the particles and the buffers (about 155 bytes a
-    particle). The answers are the same. It holds that memory until
-    release() or its end (``bytes`` says how much); one screen at a time (a
-    second call from another thread meanwhile, or release() during one,
-    raises RuntimeError). With screen(comm=...), each rank passes its own.
+    reuses the cell lists' copies of the particles and the buffers of the
+    one before (about 155 bytes a particle) instead of fresh pages. The
+    answers are the same. It holds that memory until release() or its end
+    (``bytes`` says how much); one screen at a time (a second call from
+    another thread meanwhile raises RuntimeError). With screen(comm=...),
+    each rank passes its own.
     """
 
     def __init__(self):

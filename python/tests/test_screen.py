@@ -170,23 +170,15 @@ def test_threads_do_not_change_the_pairs():
 def test_a_workspace_reused_across_scenes_gives_the_brute_force_pairs():
     workspace = pw.ScreenWorkspace()
     assert workspace.bytes == 0
-    # The shapes given each way the store takes them (per particle; one shape
-    # for all, which becomes a type; forms q), so that a refilled store
-    # keeps nothing of the scene before, types included.
-    steps = [(600, 5, 10.0, 1.0, True, "axes"), (450, 6, 8.0, 1.3, False, "one shape"),
-             (900, 7, 12.0, 1.1, True, "q"), (600, 5, 10.0, 1.0, False, "axes"),
-             (500, 8, 9.0, 1.2, True, "one shape")]
-    for n, seed, length, cutoff, with_mu2, given in steps:
+    steps = [(600, 5, 10.0, 1.0, True), (450, 6, 8.0, 1.3, False), (900, 7, 12.0, 1.1, True),
+             (600, 5, 10.0, 1.0, False)]
+    for n, seed, length, cutoff, with_mu2 in steps:
         positions, orientations, axes = random_scene(n, seed, length)
-        if given == "one shape":
-            axes = np.broadcast_to(axes[0], axes.shape).copy()
         box = pw.Box(length, length, length)
-        forms = pw.quadratic_form(axes, orientations)
-        shapes = ({"semi_axes": axes[0]} if given == "one shape" else
-                  {"q": forms} if given == "q" else {"semi_axes": axes})
-        res = pw.screen(positions, orientations, box=box, cutoff=cutoff, with_mu2=with_mu2,
-                        workspace=workspace, **shapes)
-        pairs, mu2 = brute_force_pairs(positions, forms, box, cutoff)
+        res = pw.screen(positions, orientations, axes, box=box, cutoff=cutoff, with_mu2=with_mu2,
+                        workspace=workspace)
+        pairs, mu2 = brute_force_pairs(positions, pw.quadratic_form(axes, orientations), box,
+                                       cutoff)
         assert len(pairs) > 50
         assert np.array_equal(res.pairs, pairs)
         if with_mu2:

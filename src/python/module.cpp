@@ -18,13 +18,11 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <shared_mutex>
 #include <stdexcept>
 #include <string>
@@ -429,17 +427,17 @@ py::tuple box_tuple(const pwcontact::Box& b) {
                         b.two_dimensional ? 2 : 3, b.periodic);
 }
 
-// `store` refilled from numpy arrays (emptied first; its memory kept): forms
-// q (N, 6); or semi-axes (N, 3 | 3,) and orientations (N, 4 | 4,); or
-// per-type semi-axes (T, 3) and type_id (N,).
-void fill_store(pwcontact::ParticleStore& store, const py::object& positions_in,
-                const py::object& orientations_in, const py::object& semi_axes_in,
-                const py::object& q_in, const py::object& type_semi_axes_in,
-                const py::object& typeid_in, int threads) {
-  store.clear();
+// A store from numpy arrays: forms q (N, 6); or semi-axes (N, 3 | 3,) and
+// orientations (N, 4 | 4,); or per-type semi-axes (T, 3) and type_id (N,).
+pwcontact::ParticleStore make_store(const py::object& positions_in,
+                                    const py::object& orientations_in,
+                                    const py::object& semi_axes_in, const py::object& q_in,
+                                    const py::object& type_semi_axes_in,
+                                    const py::object& typeid_in, int threads) {
   const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
   if (positions.broadcast) throw py::value_error("positions must have shape (N, 3)");
   const std::size_t n = positions.rows;
+  pwcontact::ParticleStore store;
   const Rows<double> orientations = orientation_rows(orientations_in);
   expect_rows(orientations, n, "orientations");
   const int given =
@@ -492,49 +490,8 @@ void fill_store(pwcontact::ParticleStore& store, const py::object& positions_in,
     fill([&](std::size_t i) { store.set_typed(i, centre(i), typeid_view(i), quaternion(i)); });
   }
   errors.rethrow_if_failed();
-}
-
-pwcontact::ParticleStore make_store(const py::object& positions, const py::object& orientations,
-                                    const py::object& semi_axes, const py::object& q,
-                                    const py::object& type_semi_axes, const py::object& type_id,
-                                    int threads) {
-  pwcontact::ParticleStore store;
-  fill_store(store, positions, orientations, semi_axes, q, type_semi_axes, type_id, threads);
   return store;
 }
-
-// What a Python ScreenWorkspace keeps between screens: the screen's
-// workspace, and the store the arrays were last copied into (refilled in
-// place, so that the copy writes into pages it already has: about 108
-// bytes a particle). One call at a time: the store is filled before the
-// screen's own guard is taken, so it has a guard of its own.
-struct PythonScreenWorkspace {
-  pwcontact::ScreenWorkspace screen;
-  pwcontact::ParticleStore store;
-  std::atomic<bool> busy{false};
-
-  // Held while a call uses the workspace (or releases it).
-  class Use {
-   public:
-    explicit Use(PythonScreenWorkspace& w) : busy_(w.busy) {
-      if (busy_.exchange(true))
-        throw std::logic_error("ScreenWorkspace: in use by another screen (one call at a time)");
-    }
-    ~Use() { busy_.store(false); }
-    Use(const Use&) = delete;
-    Use& operator=(const Use&) = delete;
-
-   private:
-    std::atomic<bool>& busy_;
-  };
-
-  std::size_t bytes() const { return screen.bytes() + store.bytes(); }
-  void release() {
-    const Use use(*this);
-    screen.release();
-    store = pwcontact::ParticleStore();
-  }
-};
 
 // The pairs as arrays: (M, 2) rows, per-particle counts and offsets, mu2
 // (or None).
@@ -598,13 +555,10 @@ py::dict screen(const py::object& positions, const py::object& orientations,
   const int used = thread_count(threads);
   // (Cast before the GIL is let go; a workspace already serving a call from
   // another thread refuses this one with std::logic_error: RuntimeError.)
-  PythonScreenWorkspace* kept =
-      workspace.is_none() ? nullptr : &workspace.cast<PythonScreenWorkspace&>();
-  std::optional<PythonScreenWorkspace::Use> use;
-  if (kept) use.emplace(*kept);
-  pwcontact::ParticleStore fresh;
-  pwcontact::ParticleStore& store = kept ? kept->store : fresh;
-  fill_store(store, positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+  pwcontact::ScreenWorkspace* kept =
+      workspace.is_none() ? nullptr : &workspace.cast<pwcontact::ScreenWorkspace&>();
+  pwcontact::ParticleStore store =
+      make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
   const pwcontact::Box b = make_box(box);
   pwcontact::ScreenOptions options;
   options.cutoff = cutoff;
@@ -614,7 +568,7 @@ py::dict screen(const py::object& positions, const py::object& orientations,
   pwcontact::ScreenReport report;
   {
     py::gil_scoped_release release;
-    report = kept ? pwcontact::screen_pairs(store, b, options, pairs, kept->screen)
+    report = kept ? pwcontact::screen_pairs(store, b, options, pairs, *kept)
                   : pwcontact::screen_pairs(store, b, options, pairs);
   }
   return screened(pairs, store.size(), with_mu2, report);
@@ -631,10 +585,8 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
                     const py::object& box, double cutoff, bool with_mu2, int threads,
                     std::int64_t comm_handle, const py::object& tags_in, bool gather,
                     const py::object& workspace) {
-  PythonScreenWorkspace* kept =
-      workspace.is_none() ? nullptr : &workspace.cast<PythonScreenWorkspace&>();
-  std::optional<PythonScreenWorkspace::Use> use;
-  if (kept) use.emplace(*kept);
+  pwcontact::ScreenWorkspace* kept =
+      workspace.is_none() ? nullptr : &workspace.cast<pwcontact::ScreenWorkspace&>();
   int initialized = 0, finalized = 0;
   MPI_Initialized(&initialized);
   MPI_Finalized(&finalized);
@@ -644,9 +596,8 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
         "finalised");
   const MPI_Comm comm = MPI_Comm_f2c(MPI_Fint(comm_handle));
   const int used = thread_count(threads);
-  pwcontact::ParticleStore fresh;
-  pwcontact::ParticleStore& store = kept ? kept->store : fresh;
-  fill_store(store, positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+  const pwcontact::ParticleStore store =
+      make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
   const std::size_t n = store.size();
   std::vector<std::uint64_t> tags(n);
   if (tags_in.is_none()) {
@@ -672,7 +623,7 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
   pwcontact::mpi::DistributedReport report;
   {
     py::gil_scoped_release release;
-    report = kept ? pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs, kept->screen)
+    report = kept ? pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs, *kept)
                   : pwcontact::mpi::screen_pairs(comm, store, tags, b, options, pairs);
     if (gather) pairs = pwcontact::mpi::gather_pairs(comm, pairs);
   }
@@ -1099,10 +1050,10 @@ PYBIND11_MODULE(_pwcontact, m) {
   m.def("screen", &screen, py::arg("positions"), py::arg("orientations"), py::arg("semi_axes"),
         py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"), py::arg("box"),
         py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"), py::arg("workspace"));
-  py::class_<PythonScreenWorkspace>(m, "ScreenWorkspace")
+  py::class_<pwcontact::ScreenWorkspace>(m, "ScreenWorkspace")
       .def(py::init<>())
-      .def_property_readonly("bytes", &PythonScreenWorkspace::bytes)
-      .def("release", &PythonScreenWorkspace::release);
+      .def_property_readonly("bytes", &pwcontact::ScreenWorkspace::bytes)
+      .def("release", &pwcontact::ScreenWorkspace::release);
 #if PWCONTACT_WITH_MPI
   m.attr("with_mpi") = true;
   m.def("screen_mpi", &screen_mpi, py::arg("positions"), py::arg("orientations"),

@@ -90,20 +90,6 @@ void ParticleStore::reserve(std::size_t n) {
   screen::reserve_in_huge_pages(type_id_, n);
 }
 
-void ParticleStore::clear() noexcept {
-  for_each_array([](std::vector<double>& v) { v.clear(); });
-  type_id_.clear();
-  type_axes_.clear();
-  type_radii_.clear();
-}
-
-std::size_t ParticleStore::bytes() const noexcept {
-  std::size_t doubles = bounding_.capacity() + inscribed_.capacity() + sphere_.capacity();
-  for (const auto& v : centre_) doubles += v.capacity();
-  for (const auto& v : q_) doubles += v.capacity();
-  return doubles * sizeof(double) + type_id_.capacity() * sizeof(std::uint32_t);
-}
-
 void ParticleStore::resize(std::size_t n) {
   // Beyond the capacity: reserved (in huge pages) with the vector's
   // doubling, so that growing one particle at a time stays linear.
