@@ -1078,9 +1078,10 @@ TEST(Screen, AWorkspaceReusedAcrossScenesGivesTheBruteForcesPairsEachTime) {
   }
 }
 
-// A workspace serves one screen at a time: a second call meanwhile (here
-// from the first's progress callback) is refused, the first finishes, and
-// the workspace serves the next; a moved-from workspace is refused.
+// A workspace serves one screen at a time: a second call meanwhile, or a
+// release() (here from the first's progress callback), is refused, the
+// first finishes, and the workspace serves the next; a moved-from workspace
+// is refused.
 TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
   const SceneSpec spec{300, 0.3, 3, 0.05, 0.6, 7.5, true, 36};
   const ParticleStore s = make_scene(spec);
@@ -1088,7 +1089,7 @@ TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
   pwcontact::ScreenWorkspace workspace;
   ScreenOptions options;
   options.threads = 1;
-  std::size_t refused = 0;
+  std::size_t refused = 0, release_refused = 0;
   options.progress = [&](double) {
     ScreenedPairs inner;
     try {
@@ -1097,10 +1098,20 @@ TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
       EXPECT_NE(std::string(e.what()).find("in use"), std::string::npos) << e.what();
       ++refused;
     }
+    try {
+      workspace.release();
+    } catch (const std::logic_error& e) {
+      EXPECT_NE(std::string(e.what()).find("in use"), std::string::npos) << e.what();
+      ++release_refused;
+    }
   };
   ScreenedPairs first, alone;
   pwcontact::screen_pairs(s, box, options, first, workspace);
   EXPECT_GT(refused, 0u);
+  EXPECT_EQ(release_refused, refused);
+  EXPECT_GT(workspace.bytes(), 0u);  // (released only after)
+  workspace.release();
+  EXPECT_EQ(workspace.bytes(), 0u);
   options.progress = nullptr;
   pwcontact::screen_pairs(s, box, options, alone);
   EXPECT_EQ(first.i, alone.i);

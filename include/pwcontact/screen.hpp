@@ -278,9 +278,9 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 // and varying with the host: see README). The answers are the same with or
 // without one. The workspace
 // holds the memory of the largest screen it served until release() or its
-// destruction; bytes() tells how much. One screen at a time: a second call
-// while one runs throws std::logic_error (and release() must not run
-// meanwhile).
+// destruction; bytes() tells how much (between screens). One screen at a
+// time: a second call while one runs throws std::logic_error, and so does
+// release() while one runs (from another thread, or a progress callback).
 class ScreenWorkspace {
  public:
   ScreenWorkspace();
@@ -288,7 +288,7 @@ class ScreenWorkspace {
   ScreenWorkspace(ScreenWorkspace&&) noexcept;
   ScreenWorkspace& operator=(ScreenWorkspace&&) noexcept;
   std::size_t bytes() const noexcept;
-  void release() noexcept;
+  void release();
   struct Impl;
 
  private:

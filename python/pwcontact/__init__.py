@@ -494,7 +494,8 @@ class ScreenWorkspace:
     one before (about 155 bytes a particle) instead of fresh pages. The
     answers are the same. It holds that memory until release() or its end
     (``bytes`` says how much); one screen at a time (a second call from
-    another thread meanwhile raises RuntimeError). With screen(comm=...),
+    another thread meanwhile, or release() during one, raises
+    RuntimeError). With screen(comm=...),
     each rank passes its own.
     """
 

@@ -483,11 +483,17 @@ std::size_t ScreenWorkspace::bytes() const noexcept {
   return total;
 }
 
-void ScreenWorkspace::release() noexcept {
+void ScreenWorkspace::release() {
   if (!impl_) return;
+  // The flag a screen holds, taken for the release too: a screen running
+  // refuses the release, and a screen asked for meanwhile is refused.
+  if (impl_->busy.exchange(true))
+    throw std::logic_error(
+        "ScreenWorkspace::release: the workspace is in use by a screen (release it after)");
   impl_->cells = screen::CellListMemory();
   std::vector<ThreadPairs>().swap(impl_->threads);
   impl_->sort = SortMemory();
+  impl_->busy = false;
 }
 
 ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
