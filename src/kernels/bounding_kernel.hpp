@@ -18,20 +18,6 @@
 
 namespace pwcontact::kernels::PWCONTACT_TARGET {
 
-// The lanes of a comparison as the low bits of an integer.
-template <class Arch>
-PWCONTACT_INLINE std::uint32_t lane_bits(const xsimd::batch_bool<double, Arch>& b) {
-  constexpr std::size_t lanes = xsimd::batch<double, Arch>::size;
-  if constexpr (lanes == 8) {
-    return std::uint32_t(__mmask8(b));
-  } else if constexpr (lanes == 4) {
-    return std::uint32_t(_mm256_movemask_pd(__m256d(b)));
-  } else {
-    static_assert(lanes == 2, "double lanes: 2, 4 or 8");
-    return std::uint32_t(_mm_movemask_pd(__m128d(b)));
-  }
-}
-
 template <class Arch>
 std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t n,
                                     const double origin[3], double reach, double scale) {
@@ -48,7 +34,7 @@ std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t 
     const B z = B::load_unaligned(members.z + k) - oz;
     const B limit = xsimd::fma(s, B::load_unaligned(members.bounding + k), r);
     const B rr = xsimd::fma(x, x, xsimd::fma(y, y, z * z));
-    meet |= lane_bits<Arch>(rr < xsimd::fma(limit * limit, widen, floor)) << k;
+    meet |= lane_bits(rr < xsimd::fma(limit * limit, widen, floor)) << k;
   }
   return n >= 32 ? meet : meet & ((std::uint32_t(1) << n) - 1);
 }

@@ -492,15 +492,16 @@ struct CompressFour {
 };
 inline constexpr CompressFour compress_four{};
 
-// AVX2: the mask bits of a register of W lanes, and those bits spread to
-// one byte each (0xFF for a set lane), lane 0 in the lowest byte.
-template <class Arch, class T>
-PWCONTACT_INLINE unsigned lane_bits(const xsimd::batch_bool<T, Arch>& flag) {
-  if constexpr (std::is_same<T, double>::value)
-    return unsigned(_mm256_movemask_pd(flag.data));
-  else
-    return unsigned(_mm256_movemask_ps(flag.data));
+// The lanes of four doubles selected by `mask` (4 bits) moved to the front,
+// in order, by the permutation compress_four gives.
+PWCONTACT_INLINE __m256d compress_four_doubles(__m256d values, unsigned mask) {
+  const __m256i permutation =
+      _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[mask]));
+  return _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(values), permutation));
 }
+
+// AVX2: the mask bits of a register (lane_bits) spread to one byte each
+// (0xFF for a set lane), lane 0 in the lowest byte.
 struct SpreadFour {
   std::uint32_t bytes[16];
   constexpr SpreadFour() : bytes() {
@@ -512,7 +513,7 @@ struct SpreadFour {
 inline constexpr SpreadFour spread_four{};
 template <class Arch, class T>
 PWCONTACT_INLINE std::uint64_t lane_bytes(const xsimd::batch_bool<T, Arch>& flag) {
-  const unsigned bits = lane_bits<Arch, T>(flag);
+  const unsigned bits = lane_bits(flag);
   return std::uint64_t(spread_four.bytes[bits & 0xFu]) |
          (std::uint64_t(spread_four.bytes[(bits >> 4) & 0xFu]) << 32);
 }
@@ -557,13 +558,13 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
       _mm512_storeu_si512(kept.index + first, _mm512_maskz_compress_epi32(mask, idx));
     }
     kept.count += std::size_t(__builtin_popcount(unsigned(mask)));
-  } else if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+  } else if constexpr (is_avx2<Arch>) {
     // Compress by permutations looked up from the mask (compress_four) and
     // store whole registers: four doubles, or eight floats as two halves of
     // four. (Copied lane by lane through the stack instead, the pw85
     // family's double answers, half of whose lanes are kept, took ~20 %
     // longer.)
-    const unsigned mask = lane_bits<Arch, T>(keep);
+    const unsigned mask = lane_bits(keep);
     kept.count = first + std::size_t(__builtin_popcount(mask));
     // The positions lane by lane, from the mask's bits (a few integer
     // stores; the listed ones would need a permutation of their own).
@@ -571,11 +572,8 @@ PWCONTACT_INLINE void keep_lanes(KeptLanes<T, State>& kept, const xsimd::batch_b
     for (unsigned m = mask; m != 0; m &= m - 1)
       kept.index[c++] = std::uint32_t(at[std::size_t(__builtin_ctz(m))]);
     if constexpr (std::is_same<T, double>::value) {
-      const __m256i permutation =
-          _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[mask]));
       for (int k = 0; k < arrays; ++k)
-        _mm256_storeu_pd(kept.values[k] + first, _mm256_castps_pd(_mm256_permutevar8x32_ps(
-                                                     _mm256_castpd_ps(values[k]), permutation)));
+        _mm256_storeu_pd(kept.values[k] + first, compress_four_doubles(values[k], mask));
     } else {
       const unsigned low = mask & 0xFu, high = mask >> 4;
       const std::size_t second = first + std::size_t(__builtin_popcount(low));
@@ -644,7 +642,7 @@ PWCONTACT_INLINE void write_flags(std::uint8_t* target, const LanePositions& at,
       return;
     }
   }
-  if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+  if constexpr (is_avx2<Arch>) {
     if (!at.index && at.real == W) {
       // The W bytes read, blended where `which` and written back whole (the
       // chunk's bytes are this thread's alone), each lane's byte spread from
@@ -671,8 +669,8 @@ template <class Arch, class T>
 PWCONTACT_INLINE std::uint64_t count_lanes(const xsimd::batch_bool<T, Arch>& flag) {
   if constexpr (is_avx512<Arch>) {
     return std::uint64_t(__builtin_popcount(unsigned(flag.data)));
-  } else if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
-    return std::uint64_t(__builtin_popcount(lane_bits<Arch, T>(flag)));
+  } else if constexpr (is_avx2<Arch>) {
+    return std::uint64_t(__builtin_popcount(lane_bits(flag)));
   } else {
     constexpr std::size_t W = xsimd::batch<T, Arch>::size;
     bool lanes[W];

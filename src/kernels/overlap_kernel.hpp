@@ -505,7 +505,7 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
         count += std::size_t(__builtin_popcount(unsigned(left)));
       }
     }
-  } else if constexpr (std::is_base_of<xsimd::avx2, Arch>::value) {
+  } else if constexpr (is_avx2<Arch>) {
     // Four pairs at a time, compressed by a permutation of the register's
     // 32-bit halves looked up from the four lanes' mask (AVX2 has no
     // compress) and stored whole. (Measured on the pw85 family in single
@@ -518,8 +518,6 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
         // (Of the statuses, only needs_fallback, 0xFF, has its top bit set.)
         const unsigned left = unsigned(_mm_movemask_epi8(_mm_cvtsi32_si128(int(bytes)))) & 0xFu;
         if (left == 0) continue;
-        const __m256i permutation =
-            _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[left]));
         for (int k = 0; k < pair_components; ++k) {
           const In* column = component(in, k) + i;
           __m256d values;
@@ -527,8 +525,7 @@ PairSpan<double> gather_undecided(const PairSpan<In>& in, std::size_t n, const S
             values = _mm256_loadu_pd(column);
           else
             values = _mm256_cvtps_pd(_mm_loadu_ps(column));
-          _mm256_storeu_pd(columns[k] + count, _mm256_castps_pd(_mm256_permutevar8x32_ps(
-                                                   _mm256_castpd_ps(values), permutation)));
+          _mm256_storeu_pd(columns[k] + count, compress_four_doubles(values, left));
         }
         const __m128i at = _mm_add_epi32(_mm_set1_epi32(int(i)), _mm_setr_epi32(0, 1, 2, 3));
         _mm_storeu_si128(

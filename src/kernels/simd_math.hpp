@@ -28,6 +28,28 @@ namespace pwcontact::kernels::PWCONTACT_TARGET {
 
 template <class Arch>
 inline constexpr bool is_avx512 = std::is_base_of<xsimd::avx512f, Arch>::value;
+// (In xsimd 8.1 the AVX-512 architectures do not derive from avx2.)
+template <class Arch>
+inline constexpr bool is_avx2 = std::is_base_of<xsimd::avx2, Arch>::value;
+
+// The lanes of a comparison as the low bits of an integer, lane 0 lowest.
+template <class Arch, class T>
+PWCONTACT_INLINE std::uint32_t lane_bits(const xsimd::batch_bool<T, Arch>& b) {
+  constexpr std::size_t bytes = xsimd::batch<T, Arch>::size * sizeof(T);
+  constexpr bool single = std::is_same<T, float>::value;
+  if constexpr (is_avx512<Arch>) {
+    return std::uint32_t(b.data);  // (a mask register)
+  } else if constexpr (bytes == 32 && single) {
+    return std::uint32_t(_mm256_movemask_ps(b.data));
+  } else if constexpr (bytes == 32) {
+    return std::uint32_t(_mm256_movemask_pd(b.data));
+  } else if constexpr (single) {
+    return std::uint32_t(_mm_movemask_ps(b.data));
+  } else {
+    static_assert(bytes == 16, "registers of 16, 32 or 64 bytes");
+    return std::uint32_t(_mm_movemask_pd(b.data));
+  }
+}
 
 // ---------------------------------------------------------------------------
 // Symmetric 3x3 matrices: 6 numbers, upper triangle row-major (eq. 3).
