@@ -1090,7 +1090,12 @@ TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
   ScreenOptions options;
   options.threads = 1;
   std::size_t refused = 0, release_refused = 0;
+  // bytes() during the screen: the figure as of the last screen's end (here
+  // none: 0), never the arrays the running screen resizes (a race, and under
+  // ThreadSanitizer from another thread).
+  std::vector<std::size_t> held_during;
   options.progress = [&](double) {
+    held_during.push_back(workspace.bytes());
     ScreenedPairs inner;
     try {
       pwcontact::screen_pairs(s, box, ScreenOptions(), inner, workspace);
@@ -1110,6 +1115,16 @@ TEST(Screen, AWorkspaceInUseOrMovedFromIsRefused) {
   EXPECT_GT(refused, 0u);
   EXPECT_EQ(release_refused, refused);
   EXPECT_GT(workspace.bytes(), 0u);  // (released only after)
+  ASSERT_FALSE(held_during.empty());
+  for (std::size_t b : held_during) EXPECT_EQ(b, 0u);
+  // A second screen's callback sees the first one's figure.
+  const std::size_t after_first = workspace.bytes();
+  held_during.clear();
+  ScreenedPairs second;
+  pwcontact::screen_pairs(s, box, options, second, workspace);
+  ASSERT_FALSE(held_during.empty());
+  for (std::size_t b : held_during) EXPECT_EQ(b, after_first);
+  EXPECT_EQ(second.j, first.j);
   workspace.release();
   EXPECT_EQ(workspace.bytes(), 0u);
   options.progress = nullptr;

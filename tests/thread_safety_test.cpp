@@ -4,6 +4,8 @@
 // shows that no state is shared without synchronisation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <thread>
 #include <vector>
 
@@ -74,6 +76,48 @@ TEST(ThreadSafety, CallsFromSeveralThreadsGetTheAnswersTheyGetAlone) {
     EXPECT_EQ(answers[t].pairs_i, alone.pairs_i) << "caller " << t;
     EXPECT_EQ(answers[t].pairs_j, alone.pairs_j) << "caller " << t;
   }
+}
+
+// A workspace's bytes() asked from another thread while screens run in it:
+// the figure as of the last screen's end, read without touching the arrays
+// the running screen resizes (ThreadSanitizer reports it otherwise), and
+// the screens' pairs those of a screen without a workspace.
+TEST(ThreadSafety, AWorkspacesBytesAskedDuringItsScreensFromAnotherThread) {
+  pwcontact::ParticleStore scene;
+  Engine engine(19);
+  for (int k = 0; k < 1500; ++k)
+    scene.add_axes({12 * uniform01(engine), 12 * uniform01(engine), 12 * uniform01(engine)},
+                   {0.3 + 0.3 * uniform01(engine), 0.4, 0.5},
+                   {uniform01(engine) - 0.5, uniform01(engine) - 0.5, uniform01(engine), 1});
+  const pwcontact::Box box = pwcontact::Box::periodic_box(12, 12, 12);
+  pwcontact::ScreenOptions options;
+  options.threads = 2;
+  pwcontact::ScreenedPairs alone;
+  pwcontact::screen_pairs(scene, box, options, alone);
+  pwcontact::ScreenWorkspace workspace;
+  std::atomic<bool> done{false};
+  std::vector<std::size_t> seen;
+  std::thread asker([&] {
+    while (!done.load()) {
+      const std::size_t b = workspace.bytes();
+      if (seen.empty() || seen.back() != b) seen.push_back(b);  // (the changes only)
+    }
+  });
+  std::vector<std::size_t> after;
+  for (int round = 0; round < 4; ++round) {
+    pwcontact::ScreenedPairs found;
+    pwcontact::screen_pairs(scene, box, options, found, workspace);
+    EXPECT_EQ(found.i, alone.i) << "round " << round;
+    EXPECT_EQ(found.j, alone.j) << "round " << round;
+    after.push_back(workspace.bytes());
+    if (round == 1) workspace.release();
+  }
+  done = true;
+  asker.join();
+  // Every figure seen is one a screen ended with, or 0 (new or released).
+  for (std::size_t b : seen)
+    EXPECT_TRUE(b == 0 || std::find(after.begin(), after.end(), b) != after.end()) << b;
+  EXPECT_GT(after.back(), 0u);
 }
 
 TEST(ThreadSafety, AMovingSceneAnswersCallersInSeveralThreadsAndMovesInParallel) {

@@ -278,9 +278,12 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
 // and varying with the host: see README). The answers are the same with or
 // without one. The workspace
 // holds the memory of the largest screen it served until release() or its
-// destruction; bytes() tells how much (between screens). One screen at a
-// time: a second call while one runs throws std::logic_error, and so does
-// release() while one runs (from another thread, or a progress callback).
+// destruction; bytes() tells how much, as of the end of the last screen (or
+// release): asked while a screen runs, from another thread or a progress
+// callback, it gives that figure, not the memory the running screen is
+// growing. One screen at a time: a second call while one runs throws
+// std::logic_error, and so does release() while one runs (from another
+// thread, or a progress callback).
 class ScreenWorkspace {
  public:
   ScreenWorkspace();

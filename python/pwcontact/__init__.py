@@ -504,7 +504,10 @@ class ScreenWorkspace:
 
     @property
     def bytes(self) -> int:
-        """The memory held now, in bytes."""
+        """The memory held, in bytes, as of the end of the last screen in
+        this workspace (0 when new or released). Asked while a screen runs
+        in it (from another thread or its progress callback), it gives that
+        figure, not the memory the running screen is growing."""
         return self._workspace.bytes
 
     def release(self) -> None:

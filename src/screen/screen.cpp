@@ -294,11 +294,16 @@ struct SortMemory {
 
 // What a screen keeps for the next (see ScreenWorkspace): the cell lists'
 // arrays, the threads' buffers, the sort's lists and their second arrays.
+// bytes() reads `held`, which a screen sets when it ends (and release()
+// zeroes), never the vectors themselves: a running screen resizes them, and
+// bytes() may be asked from another thread meanwhile.
 struct ScreenWorkspace::Impl {
   screen::CellListMemory cells;
   std::vector<ThreadPairs> threads;
   SortMemory sort;
   std::atomic<bool> busy{false};
+  std::atomic<std::size_t> held{0};
+  std::size_t capacity_bytes() const noexcept;
 };
 
 namespace {
@@ -468,17 +473,19 @@ ScreenWorkspace::~ScreenWorkspace() = default;
 ScreenWorkspace::ScreenWorkspace(ScreenWorkspace&&) noexcept = default;
 ScreenWorkspace& ScreenWorkspace::operator=(ScreenWorkspace&&) noexcept = default;
 
-std::size_t ScreenWorkspace::bytes() const noexcept {
-  if (!impl_) return 0;
-  std::size_t total = impl_->cells.bytes();
-  for (const ThreadPairs& t : impl_->threads)
+std::size_t ScreenWorkspace::bytes() const noexcept { return impl_ ? impl_->held.load() : 0; }
+
+// (Only while the busy flag is held: by the screen that ends, or release().)
+std::size_t ScreenWorkspace::Impl::capacity_bytes() const noexcept {
+  std::size_t total = cells.bytes();
+  for (const ThreadPairs& t : threads)
     total += t.undecided.capacity() * sizeof(Undecided) +
              t.found.capacity() * sizeof(std::uint64_t) + t.found_mu2.capacity() * sizeof(double) +
              t.batch.size() * 15 * sizeof(double) + t.status.capacity() * sizeof(Status) +
              t.overlap.capacity() + t.mu2.capacity() * sizeof(double);
-  for (const auto* lists : {&impl_->sort.keys, &impl_->sort.key_scratch})
+  for (const auto* lists : {&sort.keys, &sort.key_scratch})
     for (const auto& l : *lists) total += l.capacity() * sizeof(std::uint64_t);
-  for (const auto* lists : {&impl_->sort.keyed, &impl_->sort.keyed_scratch})
+  for (const auto* lists : {&sort.keyed, &sort.keyed_scratch})
     for (const auto& l : *lists) total += l.capacity() * sizeof(std::pair<std::uint64_t, double>);
   return total;
 }
@@ -493,6 +500,7 @@ void ScreenWorkspace::release() {
   impl_->cells = screen::CellListMemory();
   std::vector<ThreadPairs>().swap(impl_->threads);
   impl_->sort = SortMemory();
+  impl_->held = 0;
   impl_->busy = false;
 }
 
@@ -504,10 +512,15 @@ ScreenReport screen_pairs(const ParticleStore& particles, const Box& box,
   if (kept.busy.exchange(true))
     throw std::logic_error(
         "screen_pairs: the workspace is in use by another call (one call at a time)");
+  // On the way out, normal or by an exception: what the workspace now holds,
+  // then the flag.
   struct Release {
-    std::atomic<bool>& busy;
-    ~Release() { busy = false; }
-  } release{kept.busy};
+    ScreenWorkspace::Impl& kept;
+    ~Release() {
+      kept.held = kept.capacity_bytes();
+      kept.busy = false;
+    }
+  } release{kept};
   return screen_in(particles, box, options, out, &kept);
 }
 
