@@ -359,6 +359,50 @@ TEST(MovingScene, SpheresPlantedJustInsideContactAreFoundOnEveryIsa) {
   }
 }
 
+// Ellipsoids at scales 2^-400 (about 1e-120) .. 2^400, every length a power
+// of two times the unit scene's: overlaps, overlap_count and neighbors
+// against the brute force. Was: below about 1e-80 the prefilters' projection
+// test (r^T Q r, of the fourth power of the lengths) underflowed and
+// declared every ellipsoid pair apart.
+TEST(MovingScene, EllipsoidsScaledByPowersOfTwoMatchTheBruteForce) {
+  std::mt19937_64 engine(23);
+  std::uniform_real_distribution<double> unit(0, 1);
+  // (At 2^-400 in an open box: brute_mu2's inverse of the box matrix goes
+  // through its determinant, of the cube of the lengths, which underflows.)
+  for (int e : {0, -300, -400, 400}) {
+    const double scale = std::ldexp(1.0, e);
+    const Box box = e == -400 ? Box::open() : Box::periodic_box(8 * scale, 8 * scale, 8 * scale);
+    auto draw = [&]() {
+      const double a = 0.2 + 0.4 * unit(engine);
+      return ParticleStore::particle_axes(
+          {8 * scale * unit(engine), 8 * scale * unit(engine), 8 * scale * unit(engine)},
+          {a * scale, a * (0.3 + unit(engine)) * scale, a * (0.3 + 2 * unit(engine)) * scale},
+          random_quaternion(engine));
+    };
+    ParticleStore s;
+    for (int k = 0; k < 300; ++k) s.add_particle(draw());
+    const MovingScene scene(s, box);
+    std::size_t overlapping = 0;
+    for (int k = 0; k < 300; ++k) {
+      const Particle t = draw();
+      std::size_t expected = 0;
+      bool near_tangent = false;
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        const double mu2 = brute_mu2(box, t, s, i);
+        expected += mu2 < 1;
+        near_tangent = near_tangent || std::abs(mu2 - 1) < tangency_band;
+      }
+      if (near_tangent) continue;
+      overlapping += expected > 0;
+      EXPECT_EQ(scene.overlap_count(t), expected) << "scale 2^" << e << ", trial " << k;
+      EXPECT_EQ(scene.overlaps(t) != MovingScene::none, expected > 0)
+          << "scale 2^" << e << ", trial " << k;
+      EXPECT_EQ(scene.neighbors(t, 1.0, true).size(), expected) << "scale 2^" << e;
+    }
+    EXPECT_GT(overlapping, 50u) << "scale 2^" << e;
+  }
+}
+
 TEST(MovingScene, BatchedQueriesAreTheSingleQueriesWhateverTheThreadCount) {
   std::mt19937_64 engine(11);
   const Box box = Box::periodic_box(12, 12, 12);

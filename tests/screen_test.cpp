@@ -366,6 +366,52 @@ TEST(Screen, CoincidentCentresAreFoundWithAndWithoutMu2) {
   }
 }
 
+// One scene at scales 2^-480 (about 1e-144) .. 2^400: every length times a
+// power of two, so the forms scale exactly and mu^2 does not change. Was:
+// below about 1e-80 the projections' r^T Q r (of the fourth power of the
+// lengths) underflowed to 0 and every ellipsoid pair was "apart".
+TEST(Screen, ASceneScaledByPowersOfTwoGivesTheBruteForcesPairs) {
+  std::mt19937_64 engine(61);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  struct Drawn {
+    std::array<double, 3> centre, axes;
+    std::array<double, 4> q;
+  };
+  std::vector<Drawn> drawn;
+  for (int n = 0; n < 400; ++n) {
+    Drawn d;
+    for (double& c : d.centre) c = 9 * unit(engine);
+    const double a = 0.2 + 0.4 * unit(engine);
+    d.axes = {a, a * (0.3 + unit(engine)), a * (0.3 + 2 * unit(engine))};
+    if (n % 10 == 0) d.axes = {a, a, a};  // some spheres
+    for (double& c : d.q) c = normal(engine);
+    drawn.push_back(d);
+  }
+  std::set<std::pair<std::uint32_t, std::uint32_t>> at_one;
+  for (int e : {0, -240, -300, -400, -480, 300, 400}) {
+    const double scale = std::ldexp(1.0, e);
+    ParticleStore s;
+    for (const Drawn& d : drawn)
+      s.add_axes({d.centre[0] * scale, d.centre[1] * scale, d.centre[2] * scale},
+                 {d.axes[0] * scale, d.axes[1] * scale, d.axes[2] * scale}, d.q);
+    for (const Box& box : {Box::periodic_box(9 * scale, 9 * scale, 9 * scale), Box::open()}) {
+      const std::string what =
+          "scale 2^" + std::to_string(e) + (box.periodic ? ", periodic" : ", open");
+      ScreenedPairs got;
+      screen(s, box, 1, got);
+      const Comparison c = compare(s, box, 1, got, what);
+      EXPECT_GT(c.expected, 100u) << what;
+      std::set<std::pair<std::uint32_t, std::uint32_t>> pairs;
+      for (std::size_t k = 0; k < got.size(); ++k) pairs.insert({got.i[k], got.j[k]});
+      if (e == 0 && box.periodic) at_one = pairs;
+      if (box.periodic) {
+        EXPECT_EQ(pairs, at_one) << what;
+      }
+    }
+  }
+}
+
 TEST(Screen, NearlyCoincidentCentresWhoseMu2UnderflowsAreFound) {
   // mu^2 below the smallest normal number (|r12| ~ 1e-170): out of the batch
   // path's range, but an overlap all the same.

@@ -49,11 +49,23 @@ inline double form_value(const double q[6], const double r[3]) {
 // of their magnitudes, and |q_ij| <= max q_ii <= R^2 makes that sum at most
 // 3 R^2 rr: 18 eps R^2 rr in the worst case. 64 eps R^2 rr is added before
 // the square roots, so the test stays on the safe side.
+// That bound is relative, and r^T Q r is of the fourth power of the lengths:
+// for particles of about 1e-77 and less its products fall below the normal
+// range, each then off by up to 2^-1075 absolutely, and at 1e-81 they are 0,
+// which made every such pair "apart". So the test decides nothing when the
+// margin is below 2^-1000 (lengths below about 1e-72): its 46 eps R^2 rr of
+// slack then exceeds the nine products' underflow (for |r| below 2^70 R)
+// and such pairs are left to the solve, which scales each pair by a power
+// of two.
 inline bool apart_by_projections(const Side& p, const Side& o, const double r[3], double rr,
                                  double cutoff) {
   constexpr double eps = std::numeric_limits<double>::epsilon();
-  const double sp = form_value(p.q, r) + 64 * eps * p.bounding * p.bounding * rr;
-  const double so = form_value(o.q, r) + 64 * eps * o.bounding * o.bounding * rr;
+  const double margin_p = 64 * eps * p.bounding * p.bounding * rr;
+  const double margin_o = 64 * eps * o.bounding * o.bounding * rr;
+  constexpr double smallest_margin = 0x1p-1000;
+  if (!(margin_p >= smallest_margin && margin_o >= smallest_margin)) return false;
+  const double sp = form_value(p.q, r) + margin_p;
+  const double so = form_value(o.q, r) + margin_o;
   // Coincident centres (rr = 0, both sides 0) are the most overlapping pair.
   return rr > 0 && rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
 }
