@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -386,6 +387,161 @@ write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
   EXPECT_NE(message("zero_q.gsd").find("is zero"), std::string::npos) << message("zero_q.gsd");
 }
 
+// A frame of `n` particles written chunk by chunk; `shapes` rows of
+// type_shapes for the types `types`, and per-particle chunks of `rows` rows.
+void write_typed_frame(pwcontact::GsdWriter& writer, std::uint32_t n,
+                       const std::vector<std::string>& types, std::size_t shapes,
+                       std::uint64_t rows) {
+  writer.write("configuration/box", std::vector<float>{10, 10, 10, 0, 0, 0}, 6);
+  writer.write("particles/N", std::vector<std::uint32_t>{n}, 1);
+  writer.write("particles/types", types);
+  std::vector<std::string> shape_rows;
+  for (std::size_t t = 0; t < shapes; ++t)
+    shape_rows.push_back(R"({"type": "Ellipsoid", "a": 1, "b": 0.5, "c": 0.25})");
+  writer.write("particles/type_shapes", shape_rows);
+  std::vector<std::uint32_t> type_ids(rows);
+  for (std::size_t i = 0; i < rows; ++i) type_ids[i] = std::uint32_t(i % types.size());
+  writer.write("particles/typeid", type_ids, rows);
+  std::vector<float> position(3 * rows);
+  for (std::size_t i = 0; i < rows; ++i) position[3 * i] = float(2 * i);
+  writer.write("particles/position", position, rows);
+}
+
+TEST_F(GsdWritten, ChunksWithRowsThatDoNotFitTheFrameAreRefusedNamingThem) {
+  auto write = [&](const std::string& name, const std::function<void(pwcontact::GsdWriter&)>& f) {
+    std::ofstream out(directory_ / name, std::ios::binary);
+    pwcontact::GsdWriter writer(out);
+    f(writer);
+    writer.finish();
+    return (directory_ / name).string();
+  };
+  auto message = [](const std::string& path, std::int64_t frame = -1) {
+    return message_of([&] { pwcontact::read_gsd(path, frame); });
+  };
+  // Fewer shapes than types (python3-gsd writes such a file for two types
+  // and one shape): the shape of type 1 would be read beyond the chunk.
+  const std::string few = write("few.gsd", [](pwcontact::GsdWriter& w) {
+    write_typed_frame(w, 4, {"A", "B"}, 1, 4);
+    w.end_frame();
+  });
+  EXPECT_NE(message(few).find("frame 0: particles/type_shapes has 1 rows for 2 types"),
+            std::string::npos)
+      << message(few);
+  const std::string more = write("more.gsd", [](pwcontact::GsdWriter& w) {
+    write_typed_frame(w, 4, {"A", "B"}, 3, 4);
+    w.end_frame();
+  });
+  EXPECT_NE(message(more).find("frame 0: particles/type_shapes has 3 rows for 2 types"),
+            std::string::npos)
+      << message(more);
+  // A later frame's own chunk is held to the frame's types (frame 0's here).
+  const std::string later = write("later.gsd", [](pwcontact::GsdWriter& w) {
+    write_typed_frame(w, 4, {"A", "B"}, 2, 4);
+    w.end_frame();
+    w.write("particles/type_shapes",
+            std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})"});
+    w.end_frame();
+  });
+  EXPECT_EQ(pwcontact::read_gsd(later, 0).particles.size(), 4u);
+  EXPECT_NE(message(later, 1).find("frame 1: particles/type_shapes has 1 rows for 2 types"),
+            std::string::npos)
+      << message(later, 1);
+  // Per-particle chunks of the frame with other than N rows.
+  const std::string short_typeid = write("short_typeid.gsd", [](pwcontact::GsdWriter& w) {
+    w.write("particles/N", std::vector<std::uint32_t>{4}, 1);
+    w.write("particles/types", std::vector<std::string>{"A"});
+    w.write("particles/type_shapes",
+            std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})"});
+    w.write("particles/typeid", std::vector<std::uint32_t>{0, 0, 0}, 3);
+    w.end_frame();
+  });
+  EXPECT_NE(message(short_typeid).find("chunk particles/typeid of frame 0 is 3x1, expected 4x1"),
+            std::string::npos)
+      << message(short_typeid);
+  const std::string short_q = write("short_orientation.gsd", [](pwcontact::GsdWriter& w) {
+    write_typed_frame(w, 4, {"A"}, 1, 4);
+    w.write("particles/orientation", std::vector<float>{1, 0, 0, 0, 1, 0, 0, 0}, 2);
+    w.end_frame();
+  });
+  EXPECT_NE(message(short_q).find("chunk particles/orientation of frame 0 is 2x4, expected 4x4"),
+            std::string::npos)
+      << message(short_q);
+}
+
+TEST_F(GsdWritten, AHugeParticleCountIsCheckedAgainstTheChunksBeforeAnythingIsAllocated) {
+  // particles/N = 2^31 - 1 with chunks of 4 rows: refused naming the chunk
+  // (not 3 N doubles of positions allocated first, 51 GB).
+  auto huge = [&](const std::string& name, bool with_position) {
+    std::ofstream out(directory_ / name, std::ios::binary);
+    pwcontact::GsdWriter writer(out);
+    writer.write("particles/N", std::vector<std::uint32_t>{0x7fffffffu}, 1);
+    writer.write("particles/types", std::vector<std::string>{"A"});
+    writer.write("particles/type_shapes",
+                 std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})"});
+    if (with_position) writer.write("particles/position", std::vector<float>(12, 0.0f), 4);
+    writer.write("particles/typeid", std::vector<std::uint32_t>(4, 0), 4);
+    writer.end_frame();
+    writer.finish();
+    return (directory_ / name).string();
+  };
+  const std::string with_position = huge("position.gsd", true);
+  const std::string message = message_of([&] { pwcontact::read_gsd(with_position); });
+  EXPECT_NE(message.find("chunk particles/position of frame 0 is 4x3, expected 2147483647x3"),
+            std::string::npos)
+      << message;
+  const std::string typeid_only = huge("typeid.gsd", false);
+  const std::string typeid_message = message_of([&] { pwcontact::read_gsd(typeid_only); });
+  EXPECT_NE(typeid_message.find("chunk particles/typeid of frame 0 is 4x1, expected 2147483647x1"),
+            std::string::npos)
+      << typeid_message;
+}
+
+TEST_F(GsdWritten, AChunkOfStringsWithRowsOfNoCharactersIsRefused) {
+  // particles/types made 10^12 rows of 0 characters (in the index, after
+  // writing): they take no bytes, so the file's size does not bound them.
+  const fs::path path = directory_ / "empty_rows.gsd";
+  {
+    std::ofstream out(path, std::ios::binary);
+    pwcontact::GsdWriter writer(out);
+    writer.write("particles/N", std::vector<std::uint32_t>{1}, 1);
+    writer.write("particles/types", std::vector<std::string>{"A"});
+    writer.write("particles/type_shapes",
+                 std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})"});
+    writer.end_frame();
+    writer.finish();
+  }
+  std::fstream file(path, std::ios::binary | std::ios::in | std::ios::out);
+  std::uint64_t index = 0;
+  file.seekg(8);  // the header's index_location
+  file.read(reinterpret_cast<char*>(&index), sizeof index);
+  // Entries of 32 bytes: frame, N, location, M (uint32), id (uint16), ...;
+  // the names in the order written, particles/types the second.
+  bool patched = false;
+  for (std::uint64_t at = index; !patched; at += 32) {
+    std::int64_t location = 0;
+    std::uint16_t id = 0;
+    file.seekg(std::streamoff(at + 16));
+    file.read(reinterpret_cast<char*>(&location), sizeof location);
+    file.seekg(std::streamoff(at + 28));
+    file.read(reinterpret_cast<char*>(&id), sizeof id);
+    ASSERT_TRUE(file && location != 0) << "no index entry of particles/types";
+    if (id != 1) continue;
+    const std::uint64_t rows = 1000000000000;
+    const std::uint32_t columns = 0;
+    file.seekp(std::streamoff(at + 8));
+    file.write(reinterpret_cast<const char*>(&rows), sizeof rows);
+    file.seekp(std::streamoff(at + 24));
+    file.write(reinterpret_cast<const char*>(&columns), sizeof columns);
+    patched = true;
+  }
+  file.close();
+  const std::string message = message_of([&] { pwcontact::read_gsd(path.string()); });
+  EXPECT_NE(
+      message.find("chunk particles/types of frame 0 has 1000000000000 rows of no characters"),
+      std::string::npos)
+      << message;
+}
+
 // ---------------------------------------------------------------------------
 // LAMMPS
 
@@ -482,6 +638,100 @@ TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
       << message(short_line);
   const std::string zero = write_with("zero.data", ellipsoids + 2, "1 1.2 0 0.6 1 0 0 0");
   EXPECT_NE(message(zero).find("atom 1: "), std::string::npos) << message(zero);
+  // Atoms of two Ellipsoids lines, or none: the line, or the atom's Atoms line.
+  const std::string twice = write_with("twice.data", ellipsoids + 3, "1 1.2 0.8 0.6 1 0 0 0");
+  EXPECT_NE(message(twice).find(":" + std::to_string(ellipsoids + 4) +
+                                ": atom 1 has a second Ellipsoids line (the first is line " +
+                                std::to_string(ellipsoids + 3) + ")"),
+            std::string::npos)
+      << message(twice);
+  const std::string none = write_with("none.data", ellipsoids + 3, "");
+  EXPECT_NE(message(none).find(":" + std::to_string(atoms + 4) + ": atom 2 has no Ellipsoids line"),
+            std::string::npos)
+      << message(none);
+  // Every field of an Atoms line is parsed and checked, as LAMMPS does.
+  const std::string atom_line = ":" + std::to_string(atoms + 3) + ": ";
+  const std::pair<const char*, const char*> bad_fields[] = {
+      {"1 1 1 abc 1 5 5", "the density 'abc' is not a finite number"},
+      {"1 1 1 0 1 5 5", "atom 1 has density 0: LAMMPS requires a positive density"},
+      {"1 1 1 -2.5 1 5 5 0 0 0", "atom 1 has density -2.5"},
+      {"1 1 2 1 1 5 5", "atom 1 has ellipsoidflag 2, not 0 or 1"},
+      {"1 1 1 1 1 5 5 a b c", "the image flag 'a' is not an integer"},
+      {"1 1 1 1 1 5 5 0 1.5 0", "the image flag '1.5' is not an integer"},
+      {"0 1 1 1 1 5 5", "atom id 0: LAMMPS atom ids are positive"},
+  };
+  for (const auto& [replacement, expected] : bad_fields) {
+    const std::string bad = write_with("field.data", atoms + 2, replacement);
+    EXPECT_NE(message(bad).find(atom_line + expected), std::string::npos)
+        << replacement << ": " << message(bad);
+  }
+  // Image flags of any sign are integers.
+  const Scene imaged = pwcontact::read_lammps_data(
+      write_with("imaged.data", atoms + 2,
+                 "1 1 1 3.3157279810811535 8.423517774475513 6.744612934228318 "
+                 "2.1391465068511417 -1 +2 0"));
+  EXPECT_EQ(imaged.particles.size(), 50u);
+  fs::remove_all(dir);
+}
+
+TEST(SceneFiles, MalformedLammpsDumpsNameTheirLine) {
+  std::string pattern = (fs::path(::testing::TempDir()) / "pwcontact_dump.XXXXXX").string();
+  ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+  const fs::path dir = pattern;
+  // A frame of `count` (as written) and its atom lines, each "id x".
+  auto frame = [](const std::string& count, const std::vector<std::string>& atoms) {
+    std::string text = "ITEM: TIMESTEP\n0\n";
+    if (!count.empty()) text += "ITEM: NUMBER OF ATOMS\n" + count + "\n";
+    text +=
+        "ITEM: BOX BOUNDS pp pp pp\n0 10\n0 10\n0 10\n"
+        "ITEM: ATOMS id type x y z shapex shapey shapez quatw quati quatj quatk\n";
+    for (const std::string& a : atoms) {
+      std::istringstream in(a);
+      std::string id, x;
+      in >> id >> x;
+      text += id + " 1 " + x + " 5 5 2 2 2 1 0 0 0\n";
+    }
+    return text;
+  };
+  auto message = [&](const std::string& name, const std::string& text, std::int64_t f = -1) {
+    std::ofstream(dir / name) << text;
+    return message_of([&] { pwcontact::read_lammps_dump((dir / name).string(), f); });
+  };
+  // (Lines 1-9 the frame's items, its atoms from line 10.)
+  const std::string good = frame("2", {"1 1", "2 5"});
+  std::ofstream(dir / "good.dump") << good << good;
+  EXPECT_EQ(pwcontact::read_lammps_dump((dir / "good.dump").string(), 0).particles.size(), 2u);
+  EXPECT_EQ(pwcontact::read_lammps_dump((dir / "good.dump").string(), 1).particles.size(), 2u);
+  // More atom lines than the count.
+  const std::string extra = message("extra.dump", frame("2", {"1 1", "2 5", "3 9.5"}));
+  EXPECT_NE(extra.find(":12: frame 0: more atom lines than ITEM: NUMBER OF ATOMS gives (2)"),
+            std::string::npos)
+      << extra;
+  const std::string extra_first =
+      message("extra_first.dump", frame("2", {"1 1", "2 5", "3 9.5"}) + good, 0);
+  EXPECT_NE(extra_first.find(":12: frame 0: more atom lines"), std::string::npos) << extra_first;
+  // No count.
+  const std::string uncounted = message("uncounted.dump", good + frame("", {"1 1", "2 5"}));
+  EXPECT_NE(uncounted.find(":18: frame 1: no ITEM: NUMBER OF ATOMS before ITEM: ATOMS"),
+            std::string::npos)
+      << uncounted;
+  // An id twice.
+  const std::string twice = message("twice.dump", frame("3", {"1 1", "2 5", "1 9.5"}));
+  EXPECT_NE(twice.find(":12: frame 0: atom id 1 appears twice (first on line 10)"),
+            std::string::npos)
+      << twice;
+  // Fewer atom lines than the count: at the end of the file, or before the
+  // next frame; a count no file could hold is not reserved.
+  const std::string short_last = message("short_last.dump", frame("3", {"1 1", "2 5"}));
+  EXPECT_NE(short_last.find("frame 0: the frame ends after 2 of its 3 atoms"), std::string::npos)
+      << short_last;
+  const std::string short_first = message("short_first.dump", frame("3", {"1 1", "2 5"}) + good, 0);
+  EXPECT_NE(short_first.find(":12: frame 0: the frame ends after 2 of its 3 atoms"),
+            std::string::npos)
+      << short_first;
+  const std::string huge = message("huge.dump", frame("1000000000000000000", {"1 1", "2 5"}));
+  EXPECT_NE(huge.find("the frame ends after 2 of its 1000000000000000000 atoms"), std::string::npos)
+      << huge;
   fs::remove_all(dir);
 }
 

@@ -72,10 +72,7 @@ class GsdFile {
   template <class T>
   std::vector<T> numbers(const IndexEntry& e, const std::string& name, std::uint64_t rows,
                          std::uint32_t columns) const {
-    if (e.n != rows || e.m != columns)
-      malformed("chunk " + name + " of frame " + std::to_string(e.frame) + " is " +
-                std::to_string(e.n) + "x" + std::to_string(e.m) + ", expected " +
-                std::to_string(rows) + "x" + std::to_string(columns));
+    check_shape(e, name, rows, columns);
     const std::size_t count = std::size_t(rows) * columns;
     std::vector<unsigned char> raw = bytes(e, name);
     std::vector<T> out(count);
@@ -104,11 +101,25 @@ class GsdFile {
     return out;
   }
 
+  // The chunk is `rows` x `columns`, as the schema says.
+  void check_shape(const IndexEntry& e, const std::string& name, std::uint64_t rows,
+                   std::uint32_t columns) const {
+    if (e.n != rows || e.m != columns)
+      malformed("chunk " + name + " of frame " + std::to_string(e.frame) + " is " +
+                std::to_string(e.n) + "x" + std::to_string(e.m) + ", expected " +
+                std::to_string(rows) + "x" + std::to_string(columns));
+  }
+
   // The rows of a chunk of characters, each a zero-terminated string.
   std::vector<std::string> strings(const IndexEntry& e, const std::string& name) const {
     if (e.type != int8 && e.type != uint8 && e.type != character)
       malformed("chunk " + name + " does not hold characters (type " + std::to_string(e.type) +
                 ")");
+    // (Rows of no characters take no bytes: the file's size would not bound
+    // how many strings are made.)
+    if (e.m == 0 && e.n != 0)
+      malformed("chunk " + name + " of frame " + std::to_string(e.frame) + " has " +
+                std::to_string(e.n) + " rows of no characters");
     const std::vector<unsigned char> raw = bytes(e, name);
     std::vector<std::string> rows;
     for (std::uint64_t r = 0; r < e.n; ++r) {
@@ -260,25 +271,43 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
     file.malformed(where + ": configuration/box: " + e.what());
   }
 
-  std::vector<double> position(3 * n, 0.0);
-  if (const IndexEntry* e = chunk(file, f, "particles/position", n))
-    position = file.numbers<double>(*e, "particles/position", n, 3);
-  std::vector<double> orientation;
-  if (const IndexEntry* e = chunk(file, f, "particles/orientation", n))
-    orientation = file.numbers<double>(*e, "particles/orientation", n, 4);
-  std::vector<std::uint32_t> type_id(n, 0);
-  if (const IndexEntry* e = chunk(file, f, "particles/typeid", n))
-    type_id = file.numbers<std::uint32_t>(*e, "particles/typeid", n, 1);
+  // The per-particle chunks are checked against N before anything of N
+  // particles is allocated: a chunk that fits the file bounds N, and a
+  // declared N that no chunk matches is refused naming the chunk.
+  const IndexEntry* position_entry = chunk(file, f, "particles/position", n);
+  const IndexEntry* orientation_entry = chunk(file, f, "particles/orientation", n);
+  const IndexEntry* type_id_entry = chunk(file, f, "particles/typeid", n);
+  if (position_entry) file.check_shape(*position_entry, "particles/position", n, 3);
+  if (orientation_entry) file.check_shape(*orientation_entry, "particles/orientation", n, 4);
+  if (type_id_entry) file.check_shape(*type_id_entry, "particles/typeid", n, 1);
   scene.type_names = {"A"};
   if (const IndexEntry* e = file.find(f, "particles/types") ? file.find(f, "particles/types")
                                                             : file.find(0, "particles/types"))
     scene.type_names = file.strings(*e, "particles/types");
   const std::size_t types = scene.type_names.size();
+  // One shape per type: the frame's own chunk as well as frame 0's (which
+  // chunk() takes only with as many rows), or a type's shape would be read
+  // beyond the chunk.
   const IndexEntry* shapes_entry = chunk(file, f, "particles/type_shapes", types);
   if (!shapes_entry)
     file.malformed(where + ": no particles/type_shapes for its " + std::to_string(types) +
                    " types: the file does not give the particles' shapes");
+  if (shapes_entry->n != types)
+    file.malformed(where + ": particles/type_shapes has " + std::to_string(shapes_entry->n) +
+                   " rows for " + std::to_string(types) + " types");
   const std::vector<std::string> shapes_json = file.strings(*shapes_entry, "particles/type_shapes");
+
+  // (A chunk's values are read, its size checked against the file's, before
+  // they are allocated; the defaults only when the chunk is absent.)
+  const std::vector<double> position =
+      position_entry ? file.numbers<double>(*position_entry, "particles/position", n, 3)
+                     : std::vector<double>(3 * n, 0.0);
+  const std::vector<double> orientation =
+      orientation_entry ? file.numbers<double>(*orientation_entry, "particles/orientation", n, 4)
+                        : std::vector<double>();
+  std::vector<std::uint32_t> type_id =
+      type_id_entry ? file.numbers<std::uint32_t>(*type_id_entry, "particles/typeid", n, 1)
+                    : std::vector<std::uint32_t>(n, 0);
   std::vector<detail::ShapeAxes> shapes;
   for (std::size_t t = 0; t < types; ++t) {
     try {

@@ -42,6 +42,15 @@ class Lines {
   }
   std::istream& stream() { return in_; }
   void set_number(std::size_t n) { number_ = n; }
+  // The bytes after the current position (0 when it is unknown).
+  std::uint64_t bytes_left() {
+    const std::streampos at = in_.tellg();
+    if (at < 0) return 0;
+    in_.seekg(0, std::ios::end);
+    const std::streampos end = in_.tellg();
+    in_.seekg(at);
+    return end > at ? std::uint64_t(end - at) : 0;
+  }
 
  private:
   std::string path_;
@@ -78,6 +87,15 @@ std::uint64_t whole(std::string_view word, const Lines& lines, const char* what)
   return value;
 }
 
+std::int64_t integer(std::string_view word, const Lines& lines, const char* what) {
+  std::int64_t value = 0;
+  if (word.size() > 1 && word[0] == '+') word.remove_prefix(1);
+  const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
+  if (error != std::errc() || end != word.data() + word.size())
+    lines.fail(std::string(what) + " '" + std::string(word) + "' is not an integer");
+  return value;
+}
+
 bool starts_section(const std::string& line) {
   const std::vector<std::string_view> w = words(line);
   return !w.empty() && ((w[0][0] >= 'A' && w[0][0] <= 'Z') || (w[0][0] >= 'a' && w[0][0] <= 'z'));
@@ -90,7 +108,8 @@ struct Atom {
   std::array<double, 3> position;
   std::array<double, 3> diameters;
   std::array<double, 4> quaternion;
-  std::size_t line;  // where its shape is given
+  std::size_t line;        // where its shape is given (0: not yet)
+  std::size_t atoms_line;  // a data file's Atoms line
 };
 
 // `where` follows the line number in messages (" (frame 3)", or empty).
@@ -176,17 +195,31 @@ Scene read_lammps_data(const std::string& path) {
               "an Atoms line of atom_style ellipsoid has 7 or 10 fields (id type "
               "ellipsoidflag density x y z [ix iy iz]), this one " +
               std::to_string(w.size()));
+        // Every field is read and checked as LAMMPS's read_data does
+        // (positive ids, ellipsoidflag 0 or 1, positive density, integer
+        // image flags), though only the id, type and position are kept.
         Atom a{};
         a.id = whole(w[0], lines, "the atom id");
+        if (a.id == 0) lines.fail("atom id 0: LAMMPS atom ids are positive");
         a.type = std::uint32_t(whole(w[1], lines, "the atom type"));
         if (a.type < 1 || a.type > types)
           lines.fail("atom type " + std::to_string(a.type) + " is not one of the " +
                      std::to_string(types));
-        if (whole(w[2], lines, "the ellipsoid flag") == 0)
+        const std::uint64_t flag = whole(w[2], lines, "the ellipsoid flag");
+        if (flag == 0)
           lines.fail("atom " + std::to_string(a.id) +
                      " has ellipsoidflag 0: a point particle, no shape");
+        if (flag != 1)
+          lines.fail("atom " + std::to_string(a.id) + " has ellipsoidflag " + std::string(w[2]) +
+                     ", not 0 or 1");
+        const double density = number(w[3], lines, "the density");
+        if (!(density > 0))
+          lines.fail("atom " + std::to_string(a.id) + " has density " + std::string(w[3]) +
+                     ": LAMMPS requires a positive density");
         for (int k = 0; k < 3; ++k)
           a.position[k] = number(w[std::size_t(4 + k)], lines, "a coordinate");
+        for (std::size_t k = 7; k < w.size(); ++k) integer(w[k], lines, "the image flag");
+        a.atoms_line = lines.number();
         if (!by_id.emplace(a.id, atoms.size()).second)
           lines.fail("atom id " + std::to_string(a.id) + " appears twice");
         atoms.push_back(a);
@@ -202,6 +235,10 @@ Scene read_lammps_data(const std::string& path) {
           lines.fail("ellipsoid of atom " + std::to_string(id) +
                      ", which the Atoms section has not listed");
         Atom& a = atoms[found->second];
+        if (a.line != 0)
+          lines.fail("atom " + std::to_string(id) +
+                     " has a second Ellipsoids line (the first is line " + std::to_string(a.line) +
+                     ")");
         for (int k = 0; k < 3; ++k)
           a.diameters[k] = number(w[std::size_t(1 + k)], lines, "a shape");
         for (int k = 0; k < 4; ++k)
@@ -215,6 +252,13 @@ Scene read_lammps_data(const std::string& path) {
   if (atoms.size() != atoms_count)
     throw std::invalid_argument(path + ": the header gives " + std::to_string(atoms_count) +
                                 " atoms, the Atoms section " + std::to_string(atoms.size()));
+  // An atom without a shape is named with its Atoms line (the section's
+  // lines are one per atom, so the count alone would not say which).
+  for (const Atom& a : atoms)
+    if (a.line == 0)
+      throw std::invalid_argument(path + ":" + std::to_string(a.atoms_line) + ": atom " +
+                                  std::to_string(a.id) +
+                                  " has no Ellipsoids line: every atom needs a shape");
   if (shaped != atoms.size() || ellipsoids_count != atoms.size())
     throw std::invalid_argument(path + ": " + std::to_string(atoms.size()) + " atoms but " +
                                 std::to_string(shaped) + " Ellipsoids lines (header: " +
@@ -246,9 +290,11 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   lines.stream().seekg(starts[f]);
   lines.set_number(start_lines[f] - 1);
   std::string line;
+  const std::string frame_name = "frame " + std::to_string(f) + ": ";
   lines.next(line);  // ITEM: TIMESTEP
   lines.next(line);  // the step
   std::uint64_t atoms_count = 0;
+  bool counted = false;
   double bound[3][3] = {};  // lo, hi, tilt per axis
   bool triclinic = false, periodic = true, open = true;
   std::vector<std::string> names;
@@ -258,6 +304,7 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
       const auto w = words(line);
       if (w.size() != 1) lines.fail("expected the number of atoms");
       atoms_count = whole(w[0], lines, "the number of atoms");
+      counted = true;
     } else if (line.rfind("ITEM: BOX BOUNDS", 0) == 0) {
       const auto w = words(line);
       triclinic = w.size() >= 6 && w[3] == "xy";
@@ -273,6 +320,8 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
         for (std::size_t j = 0; j < b.size(); ++j) bound[k][j] = number(b[j], lines, "a box bound");
       }
     } else if (line.rfind("ITEM: ATOMS", 0) == 0) {
+      // (Without the count the frame's end is not known.)
+      if (!counted) lines.fail(frame_name + "no ITEM: NUMBER OF ATOMS before ITEM: ATOMS");
       for (std::string_view w : words(std::string_view(line).substr(11))) names.emplace_back(w);
       break;
     } else if (line.rfind("ITEM: TIMESTEP", 0) == 0) {
@@ -334,12 +383,18 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
     if (names[k] == "id") id_column = k;
     if (names[k] == "type") type_column = k;
   }
+  // No more is reserved than the rest of the file could hold (a line of
+  // names.size() columns has at least 2 names.size() bytes): a count of
+  // 10^18 is then refused where the frame's lines end.
+  const std::uint64_t room = lines.bytes_left() / (2 * names.size());
   std::vector<Atom> atoms;
-  atoms.reserve(atoms_count);
+  atoms.reserve(std::size_t(std::min(atoms_count, room)));
+  std::unordered_map<std::uint64_t, std::size_t> line_of_id;
+  line_of_id.reserve(std::size_t(std::min(atoms_count, room)));
   std::uint32_t types = 1;
   for (std::uint64_t n = 0; n < atoms_count; ++n) {
-    if (!lines.next(line))
-      lines.fail("the frame ends after " + std::to_string(n) + " of its " +
+    if (!lines.next(line) || line.rfind("ITEM:", 0) == 0)
+      lines.fail(frame_name + "the frame ends after " + std::to_string(n) + " of its " +
                  std::to_string(atoms_count) + " atoms");
     const auto w = words(line);
     if (w.size() != names.size())
@@ -357,8 +412,19 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
     for (int k = 0; k < 4; ++k)
       a.quaternion[k] = number(w[quaternion[k]], lines, "a quaternion component");
     a.line = lines.number();
+    if (const auto [at, added] = line_of_id.emplace(a.id, a.line); !added)
+      lines.fail(frame_name + "atom id " + std::to_string(a.id) + " appears twice (first on line " +
+                 std::to_string(at->second) + ")");
     atoms.push_back(a);
   }
+  // The count's lines end the frame: what follows is the next frame's
+  // ITEM: line or the end of the file (blank lines aside), not more atoms.
+  bool more = false;
+  while ((more = lines.next(line)) && line.find_first_not_of(" \t") == std::string::npos) {
+  }
+  if (more && line.rfind("ITEM:", 0) != 0)
+    lines.fail(frame_name + "more atom lines than ITEM: NUMBER OF ATOMS gives (" +
+               std::to_string(atoms_count) + ")");
   Scene scene = store(atoms, box, types, path, " (frame " + std::to_string(f) + ")");
   scene.frame = f;
   scene.frames = std::uint64_t(count);
