@@ -412,6 +412,40 @@ TEST(Screen, ASceneScaledByPowersOfTwoGivesTheBruteForcesPairs) {
   }
 }
 
+// The demo's scene generators refuse what would make no scene with an
+// exception the caller can catch. Was: a largest aspect ratio of 0, NaN or
+// 1e300 made forms the store refuses, thrown inside the OpenMP region, and
+// the program (a Python interpreter) ended in std::terminate.
+TEST(Screen, SceneGeneratorsRefuseBadArgumentsWithAnExceptionFromEveryThread) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double aspect : {0.0, 0.5, -1.0, nan, inf}) {
+    EXPECT_THROW(pwcontact::spheroid_scene(10000, 1, 0.3, aspect, false, 2), std::invalid_argument)
+        << aspect;
+    EXPECT_THROW(pwcontact::ellipse_scene(10000, 1, 0.3, aspect, 2), std::invalid_argument)
+        << aspect;
+  }
+  for (double packing : {0.0, -0.3, 1.0, 5.0, nan, inf}) {
+    EXPECT_THROW(pwcontact::spheroid_scene(10000, 1, packing, 3, false, 2), std::invalid_argument)
+        << packing;
+    EXPECT_THROW(pwcontact::ellipse_scene(10000, 1, packing, 3, 2), std::invalid_argument)
+        << packing;
+  }
+  // Finite but too elongated for a definite form: refused by the store,
+  // inside the region, on both threads' blocks.
+  try {
+    pwcontact::spheroid_scene(20000, 1, 0.3, 1e300, false, 2);
+    ADD_FAILURE() << "an aspect ratio of 1e300 was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("particle"), std::string::npos) << e.what();
+  }
+  // A progress callback that throws.
+  EXPECT_THROW(pwcontact::spheroid_scene(20000, 1, 0.3, 3, false, 2,
+                                         [](double) { throw std::runtime_error("stop"); }),
+               std::runtime_error);
+  EXPECT_EQ(pwcontact::spheroid_scene(20000, 1, 0.3, 3, false, 2).particles.size(), 20000u);
+}
+
 TEST(Screen, NearlyCoincidentCentresWhoseMu2UnderflowsAreFound) {
   // mu^2 below the smallest normal number (|r12| ~ 1e-170): out of the batch
   // path's range, but an overlap all the same.
