@@ -1379,12 +1379,33 @@ TEST(Screen, SetAxesStoresWhatParticleAxesGives) {
       "[ measured ] %zu particles stored as particle_axes gives them (%zu spheres), %zu "
       "refused by both\n",
       expected.size(), spheres, refused);
-  // A zero quaternion: refused for unequal semi-axes (naming the particle),
-  // accepted for a sphere (its rotation does not matter), as before.
+  // A zero or non-finite quaternion: refused naming the particle, for a
+  // sphere too (its rotation does not matter, but a NaN there is malformed
+  // input: it was taken silently), by every way of storing one.
   ParticleStore s;
   s.resize(2);
-  EXPECT_THROW(s.set_axes(0, {0, 0, 0}, {1, 2, 3}, {0, 0, 0, 0}), std::invalid_argument);
-  s.set_axes(1, {0, 0, 0}, {2, 2, 2}, {0, 0, 0, 0});
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  for (const std::array<double, 3>& axes :
+       {std::array<double, 3>{1, 2, 3}, std::array<double, 3>{2, 2, 2}})
+    for (const std::array<double, 4>& q :
+         {std::array<double, 4>{0, 0, 0, 0}, std::array<double, 4>{nan, 0, 0, 0},
+          std::array<double, 4>{1, inf, 0, 0}}) {
+      try {
+        s.set_axes(1, {0, 0, 0}, axes, q);
+        ADD_FAILURE() << "a quaternion " << q[0] << " " << q[1] << " taken for axes " << axes[0]
+                      << " " << axes[1] << " " << axes[2];
+      } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("particle 1"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("quaternion"), std::string::npos) << e.what();
+      }
+      EXPECT_THROW(ParticleStore::particle_axes({0, 0, 0}, axes, q), std::invalid_argument);
+      EXPECT_THROW(ParticleStore().add_axes({0, 0, 0}, axes, q), std::invalid_argument);
+    }
+  ParticleStore typed;
+  const std::uint32_t ball = typed.add_type({2, 2, 2});
+  EXPECT_THROW(typed.add_typed({0, 0, 0}, ball, {nan, 0, 0, 0}), std::invalid_argument);
+  s.set_axes(1, {0, 0, 0}, {2, 2, 2}, {1e-300, 0, 0, 0});  // any non-zero finite one
   EXPECT_EQ(s.sphere_radius()[1], 2.0);
   EXPECT_THROW(s.set_axes(2, {0, 0, 0}, {1, 1, 1}, {1, 0, 0, 0}), std::out_of_range);
 }

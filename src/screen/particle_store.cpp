@@ -176,13 +176,22 @@ void check_semi_axes(const std::string& who, const std::array<double, 3>& semi_a
 // semi-axes: a sphere whatever the rotation, stored as exactly a^2 I (the
 // rotated form would carry rounding off the diagonal), so that pairs of
 // spheres are recognised and decided in closed form.
-// (A zero or non-finite quaternion: std::invalid_argument naming `who`.)
+// (A zero or non-finite quaternion: std::invalid_argument naming `who`, for
+// a sphere too: its orientation changes nothing, but a NaN there is a
+// malformed input all the same, and was taken silently.)
 QuadraticForm form_of_axes(const std::string& who, const std::array<double, 3>& semi_axes,
                            const std::array<double, 4>& quaternion) {
   const bool equal = semi_axes[0] == semi_axes[1] && semi_axes[1] == semi_axes[2];
-  if (equal) return sphere(semi_axes[0]);
   try {
-    return quadratic_form_from_quaternion(semi_axes, quaternion);
+    if (!equal) return quadratic_form_from_quaternion(semi_axes, quaternion);
+    bool zero = true, finite = true;
+    for (double c : quaternion) {
+      zero = zero && c == 0;
+      finite = finite && std::isfinite(c);
+    }
+    // (The rotation's own check and message, for the quaternion it refuses.)
+    if (zero || !finite) quadratic_form_from_quaternion({1, 1, 1}, quaternion);
+    return sphere(semi_axes[0]);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(who + ": " + e.what());
   }
