@@ -14,7 +14,11 @@ An array of the dtype computed in is read where it lies, whatever its
 strides (no copy); another dtype is converted first (a copy). Per-pair
 problems (a form that is not positive definite, a non-finite number) are
 statuses, never exceptions; malformed calls (shapes, unknown options) raise
-ValueError. The GIL is released during every computation.
+ValueError, as do values of the wrong kind (an index, a type id, a count or
+a seed that is not an integer, or is negative; an argument that would be
+ignored); an index that does not exist raises IndexError, a file that
+cannot be opened OSError (FileNotFoundError when it does not exist). The
+GIL is released during every computation.
 
 Everything here is documented with the library's conventions in README.md.
 """
@@ -23,13 +27,16 @@ from __future__ import annotations
 
 import enum
 import math
-from typing import Any, Iterable, Mapping, Optional, Sequence, Tuple, Union
+import numbers
+import operator
+from typing import Any, Iterable, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
 from . import _pwcontact as _core
 
 __all__ = [
+    "STATUS_DESCRIPTIONS",
     "Box",
     "ContactResult",
     "DistributedScreenResult",
@@ -41,9 +48,11 @@ __all__ = [
     "SkinNeighborList",
     "Status",
     "contact_function",
+    "is_valid",
     "overlap",
     "quadratic_form",
     "read_gsd",
+    "read_gsd_native",
     "read_lammps_data",
     "read_lammps_dump",
     "reference",
@@ -52,11 +61,44 @@ __all__ = [
     "spheroid",
     "spheroid_scene",
     "supported_isas",
+    "with_mpi",
 ]
+
+#: Whether this module was built with MPI (PWCONTACT_BUILD_MPI): screen(comm=...) needs it.
+with_mpi: bool = bool(_core.with_mpi)
 
 Status = enum.IntEnum("Status", [(name, code) for code, (name, _) in enumerate(_core.status_names())])
 Status.__doc__ = "Per-pair status codes (the status arrays hold these values, as uint8)."
 STATUS_DESCRIPTIONS = {Status(code): text for code, (_, text) in enumerate(_core.status_names())}
+
+
+def _integer(value, name: str, low: Optional[int] = None, high: Optional[int] = None) -> int:
+    """value as an int: a Python or numpy integer (not a bool, not a float,
+    however whole), within [low, high]; ValueError naming it otherwise."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    try:
+        i = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{name} must be an integer, got {value!r}") from None
+    if (low is not None and i < low) or (high is not None and i > high):
+        bounds = f">= {low}" if high is None else f"in {low} .. {high}"
+        raise ValueError(f"{name} must be {bounds}, got {i}")
+    return i
+
+
+def _integer_array(values, name: str) -> np.ndarray:
+    """values as an array of integers (an empty sequence too); ValueError
+    naming it for another dtype (floats are not truncated)."""
+    a = np.asarray(values)
+    if a.size == 0:
+        return a.astype(np.int64)
+    if a.dtype.kind not in "iu":
+        raise ValueError(f"{name} must be integers, got dtype {a.dtype}")
+    return a
+
+
+_UINT64_MAX = 2**64 - 1
 
 
 def is_valid(status: Any) -> Any:
@@ -67,9 +109,16 @@ def is_valid(status: Any) -> Any:
 
 def reference(r12, q1, q2) -> Tuple[float, float, Status]:
     """One pair through the scalar reference path (double): (mu2, lambda,
-    status). For a handful of pairs; contact_function is the fast path for
+    status). r12 (3,), q1 and q2 (6,) (ValueError naming one of another
+    shape). For a handful of pairs; contact_function is the fast path for
     many (a Python loop over this pays the interpreter's cost per pair)."""
-    mu2, lam, status = _core.reference(r12, q1, q2)
+    given = []
+    for name, value, k in (("r12", r12, 3), ("q1", q1, 6), ("q2", q2, 6)):
+        a = np.asarray(value, dtype=float)
+        if a.shape != (k,):
+            raise ValueError(f"{name} must be {k} numbers, got shape {a.shape}")
+        given.append(a)
+    mu2, lam, status = _core.reference(*given)
     return mu2, lam, Status(status)
 
 
@@ -88,6 +137,9 @@ class _Result:
             setattr(self, key, value)
 
     def __getitem__(self, key: str):
+        if key not in self._arrays:
+            raise KeyError(f"{key!r} is not among the outputs of this result "
+                           f"(it has {', '.join(self._arrays)}; ask for it by outputs=)")
         return self._arrays[key]
 
     def __contains__(self, key: str) -> bool:
@@ -104,10 +156,12 @@ class _Result:
 class ContactResult(_Result):
     """What contact_function computed.
 
-    Arrays (by attribute, or by key): ``mu2`` (N,), ``lambda_`` (also
-    ``result["lambda"]``, the maximiser lambda_0) when asked for, ``status``
-    (N,) uint8 (see Status), and ``contact_point``, ``normal``, ``gradient``
-    (N, 3) when asked for (views of (3, N) arrays: columns contiguous).
+    Arrays (by attribute, or by key), each when asked for by ``outputs``
+    (KeyError saying so otherwise): ``mu2`` (N,) (asked for by default;
+    computed either way, returned only when asked), ``lambda_`` (also
+    ``result["lambda"]``, the maximiser lambda_0), and ``contact_point``,
+    ``normal``, ``gradient`` (N, 3) (views of (3, N) arrays: columns
+    contiguous); always ``status`` (N,) uint8 (see Status).
     Report attributes: ``pairs``, ``fallbacks`` (pairs the SIMD kernels left to
     the scalar reference path), ``finished_in_double`` (in single precision,
     pairs the float kernels left and the double kernels finished),
@@ -117,27 +171,27 @@ class ContactResult(_Result):
 
     @property
     def mu2(self):
-        return self._arrays["mu2"]
+        return self["mu2"]
 
     @property
     def lambda_(self):
-        return self._arrays["lambda"]
+        return self["lambda"]
 
     @property
     def status(self):
-        return self._arrays["status"]
+        return self["status"]
 
     @property
     def contact_point(self):
-        return self._arrays["contact_point"]
+        return self["contact_point"]
 
     @property
     def normal(self):
-        return self._arrays["normal"]
+        return self["normal"]
 
     @property
     def gradient(self):
-        return self._arrays["gradient"]
+        return self["gradient"]
 
 
 class OverlapResult(_Result):
@@ -147,14 +201,24 @@ class OverlapResult(_Result):
 
     @property
     def overlap(self):
-        return self._arrays["overlap"]
+        return self["overlap"]
 
     @property
     def status(self):
-        return self._arrays["status"]
+        return self["status"]
 
 
 _OUTPUTS = ("mu2", "lambda", "contact_point", "normal", "gradient")
+_OUT_KEYS = ("mu2", "lambda", "status")
+
+
+def _iterations(iterations) -> Union[str, int]:
+    """"auto" (or None) or an integer (its range is the core's to check)."""
+    if iterations is None or (isinstance(iterations, str) and iterations == "auto"):
+        return "auto"
+    if isinstance(iterations, (bool, np.bool_)) or not isinstance(iterations, numbers.Integral):
+        raise ValueError(f"iterations must be 'auto' or an integer, got {iterations!r}")
+    return int(iterations)
 
 
 def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
@@ -165,16 +229,21 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
 
     r12: (N, 3) or (3,); q1, q2: (N, 6) or (6,) (upper triangles, row-major).
     outputs: any of "mu2", "lambda", "contact_point", "normal", "gradient"
-    (mu2 and status are always computed; the others cost only when asked).
+    (mu2 and status are always computed, mu2 returned only when asked; the
+    others cost only when asked).
     precision: "auto" (float32 pairs in float, else double), "double",
     "float", "mixed". iterations: "auto" (each pair until its convergence
-    check passes) or a fixed count 1 .. 40. accuracy: "standard" or "high".
+    check passes) or a fixed count, an integer 1 .. 40. accuracy: "standard"
+    or "high" (the answer refined in double: float32 pairs with
+    accuracy="high" need precision="double" or "mixed", ValueError with
+    "auto" or "float").
     threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512", "fallback" (the reference path per pair, on any CPU).
     lambda_start: optional (N,) array, a lambda to start each pair from (a
     warm start, e.g. the previous step's; NaN for none).
     out: optional dict of arrays to write into, reused across calls:
     "mu2", "lambda" (of the result's dtype) and "status" (uint8), each
-    C-contiguous of shape (N,).
+    C-contiguous of shape (N,); "lambda" only when it is among the outputs
+    (ValueError for another key, or "lambda" not asked for).
 
     Layout and cost: every layout is read in place. Arrays whose columns
     are contiguous (a Fortran-ordered (N, 3) array, or ``a.T`` of a
@@ -188,8 +257,17 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     for name in names:
         if name not in _OUTPUTS:
             raise ValueError(f"unknown output {name!r} (outputs: {', '.join(_OUTPUTS)})")
-    raw = _core.contact_function(r12, q1, q2, names, precision, iterations, accuracy, threads, isa,
-                                 lambda_start, out)
+    if out is not None:
+        if not isinstance(out, dict):
+            raise ValueError(f"out must be a dict of arrays, got {type(out).__name__}")
+        for key in out:
+            if key not in _OUT_KEYS:
+                raise ValueError(f"out[{key!r}]: unknown key (out takes {', '.join(_OUT_KEYS)})")
+        if "lambda" in out and "lambda" not in names:
+            raise ValueError("out['lambda'] is given but 'lambda' is not among the outputs: it would "
+                             "not be written")
+    raw = _core.contact_function(r12, q1, q2, names, precision, _iterations(iterations), accuracy,
+                                 threads, isa, lambda_start, out)
     report = raw.pop("report")
     if "mu2" not in names:
         raw.pop("mu2", None)
@@ -203,7 +281,7 @@ def overlap(r12, q1, q2, cutoff: float = 1.0, *, precision: str = "auto",
     positive and finite. In double precision the answer agrees with
     mu**2 < cutoff**2 wherever |mu**2 - cutoff**2| > 1e-9 cutoff**2 (README:
     the overlap bound). Returns an OverlapResult."""
-    raw = _core.overlap(r12, q1, q2, float(cutoff), precision, iterations, threads, isa)
+    raw = _core.overlap(r12, q1, q2, float(cutoff), precision, _iterations(iterations), threads, isa)
     report = raw.pop("report")
     return OverlapResult(raw, report)
 
@@ -377,26 +455,50 @@ class ScreenResult:
         return f"ScreenResult({len(self.pairs)} pairs)"
 
 
-def _check_in_plane(positions, orientations) -> None:
-    """A 2D scene: centres at z = 0, rotations about z (as the GSD reader checks)."""
-    off = np.flatnonzero(positions[:, 2] != 0)
-    if len(off):
-        raise ValueError(f"a two-dimensional box, but particle {off[0]} has z = {positions[off[0], 2]!r}, not 0")
+def _check_in_plane(positions, orientations, row: str = "particle") -> None:
+    """A 2D scene: centres at z = 0, rotations about z (as the GSD reader
+    checks). A bad one is named as `row` and its index, or as "the trial"
+    when one row is given alone ((3,) or (4,)); arrays of other shapes are
+    left to the core, which names them."""
+    p = np.asarray(positions, dtype=float)
+    if p.ndim in (1, 2) and p.shape[-1] == 3:
+        rows = p.reshape(-1, 3)
+        off = np.flatnonzero(rows[:, 2] != 0)
+        if len(off):
+            who = "the trial" if p.ndim == 1 else f"{row} {off[0]}"
+            raise ValueError(f"a two-dimensional box, but {who} has z = {rows[off[0], 2]!r}, not 0")
     if orientations is not None:
-        o = np.asarray(orientations, dtype=float).reshape(-1, 4)
-        norm = np.sum(o * o, axis=1)
-        tilted = np.flatnonzero(o[:, 1] ** 2 + o[:, 2] ** 2 > 1e-12 * norm)
+        o = np.asarray(orientations, dtype=float)
+        if o.ndim not in (1, 2) or o.shape[-1] != 4:
+            return
+        rows = o.reshape(-1, 4)
+        norm = np.sum(rows * rows, axis=1)
+        tilted = np.flatnonzero(rows[:, 1] ** 2 + rows[:, 2] ** 2 > 1e-12 * norm)
         if len(tilted):
-            raise ValueError(f"a two-dimensional box, but the orientation of particle {tilted[0]} "
-                             f"({', '.join(map(repr, o[tilted[0]]))}) is not a rotation about z")
+            whose = "" if o.ndim == 1 else f" of {row} {tilted[0]}"
+            raise ValueError(f"a two-dimensional box, but the orientation{whose} "
+                             f"({', '.join(map(repr, rows[tilted[0]]))}) is not a rotation about z")
 
 
-def _scene_arguments(who: str, positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored):
+def _typeid_array(typeid) -> np.ndarray:
+    """Type ids: integers (not floats, which would be truncated), none negative."""
+    t = _integer_array(typeid, "typeid")
+    if t.ndim == 1:
+        negative = np.flatnonzero(t < 0)
+        if len(negative):
+            raise ValueError(f"typeid of particle {negative[0]} is {t[negative[0]]}: not a type")
+    return t
+
+
+def _scene_arguments(who: str, positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored,
+                     q=None):
     """The particles' arguments as screen() takes them: the keywords that
-    read_gsd / read_lammps_* return beside them accepted and ignored,
-    semi_axes=(type_semi_axes, typeid) unpacked, the box made, a 2D scene
-    checked in its plane. Returns (positions, semi_axes, type_semi_axes,
-    typeid, box)."""
+    read_gsd / read_lammps_* return beside them accepted and ignored (an
+    unknown one is a TypeError), semi_axes=(type_semi_axes, typeid)
+    unpacked, typeid checked (integers, none negative; refused beside
+    semi_axes, which it would not change), orientations refused beside q
+    (which holds them), the box made, a 2D scene checked in its plane.
+    Returns (positions, semi_axes, type_semi_axes, typeid, box)."""
     for key in ignored:
         if key not in ("type_names", "frame", "frames", "id"):
             raise TypeError(f"{who}() got an unexpected keyword argument {key!r}")
@@ -405,6 +507,16 @@ def _scene_arguments(who: str, positions, orientations, semi_axes, type_semi_axe
             raise ValueError("give the shapes one way: semi_axes=(type_semi_axes, typeid) or the keywords")
         type_semi_axes, typeid = semi_axes
         semi_axes = None
+    # (Two ways of giving the shapes at once are the core's "one way" error.)
+    one_way = sum(x is not None for x in (semi_axes, type_semi_axes, q)) == 1
+    if typeid is not None:
+        if semi_axes is not None and one_way:
+            raise ValueError("typeid is given with semi_axes, which it would not change: typeid goes with "
+                             "type_semi_axes (the semi-axes of each type)")
+        typeid = _typeid_array(typeid)
+    if orientations is not None and q is not None and one_way:
+        raise ValueError("orientations are given with q, which they would not change: the forms q hold "
+                         "the orientations (orientations go with semi_axes or type_semi_axes)")
     b = _as_box(box)
     positions = np.asarray(positions, dtype=float)
     if b is not None and b.is2D:
@@ -444,7 +556,10 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     one shape (searched as identical shapes), with ``orientations`` (N, 4)
     quaternions (w, x, y, z) (default: identity); or ``type_semi_axes`` (T, 3)
     with ``typeid`` (N,) (as GSD gives shapes per type; also accepted as
-    ``semi_axes=(type_semi_axes, typeid)``); or ``q`` (N, 6) forms. In a 2D
+    ``semi_axes=(type_semi_axes, typeid)``); or ``q`` (N, 6) forms. typeid
+    must be integers, none negative; beside semi_axes, or orientations
+    beside q, would change nothing and are refused (ValueError); typeid
+    beside q (as read_lammps_* return them) is accepted and ignored. In a 2D
     box the particles are ellipses in the z = 0 plane: z must be 0 and every
     orientation a rotation about z (ValueError naming the particle
     otherwise), the third semi-axis at most the smaller of the other two. box: None (open), a Box, or anything Box.from_box takes.
@@ -452,8 +567,8 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     read_gsd / read_lammps_* return beside these (type_names, frame, ...)
     are accepted and ignored, so that ``screen(**read_gsd(path))`` works.
 
-    comm: an mpi4py communicator (python3-mpi4py; a module built with MPI,
-    ``pwcontact.with_mpi``): a collective call, every rank passing the
+    comm: an mpi4py communicator (python3-mpi4py; a module built with MPI:
+    ``pwcontact.with_mpi`` is True): a collective call, every rank passing the
     particles it holds (anywhere in the box) with their global ``tags`` (N,)
     (default: numbered by rank, rank 0's first); returns a
     DistributedScreenResult (pairs in tags; ``gather=True``: all of them
@@ -465,7 +580,7 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     rank's local screen, a workspace per rank); the same pairs.
     """
     positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
-        "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored)
+        "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
     if workspace is not None and not isinstance(workspace, ScreenWorkspace):
         raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
     kept = None if workspace is None else workspace._workspace
@@ -544,7 +659,7 @@ class HardParticleMC:
             raise ValueError("HardParticleMC needs a periodic three-dimensional box")
         self._mc = _core.HardParticleMC(np.asarray(positions, dtype=float), orientations, semi_axes, b._core(),
                                         float(packing), float(translation), float(rotation), bool(adapt_steps),
-                                        int(seed), int(threads))
+                                        _integer(seed, "seed", 0, _UINT64_MAX), int(threads))
 
     @classmethod
     def dilute_spheroids(cls, n: int, seed: int = 1, max_aspect: float = 3.0, *, packing: float = 0.5,
@@ -552,10 +667,11 @@ class HardParticleMC:
                          threads: int = 0) -> "HardParticleMC":
         """n spheroids (aspect ratios 1/max_aspect .. max_aspect, the volume
         of a sphere of radius 0.5) on a dilute lattice, none overlapping: the
-        start of ``pwcontact mc``."""
+        start of ``pwcontact mc``. n >= 1 and seed >= 0 integers, max_aspect
+        as spheroid_scene takes it (ValueError naming the argument)."""
         return cls(None, _core_mc=_core.HardParticleMC.dilute_spheroids(
-            int(n), int(seed), float(max_aspect), float(packing), float(translation), float(rotation),
-            bool(adapt_steps), int(threads)))
+            _integer(n, "n", 1), _integer(seed, "seed", 0, _UINT64_MAX), _max_aspect(max_aspect),
+            float(packing), float(translation), float(rotation), bool(adapt_steps), int(threads)))
 
     def sweep(self) -> dict:
         """One move proposed per particle: {proposed, accepted, left_domain
@@ -569,9 +685,10 @@ class HardParticleMC:
 
     def compress_to_packing(self, max_sweeps: int = 100000, progress=None) -> None:
         """Sweeps and compressions until the packing fraction given is
-        reached (RuntimeError after max_sweeps short of it); progress(sweeps,
-        packing, acceptance) after each sweep."""
-        self._mc.compress_to_packing(int(max_sweeps), progress)
+        reached (RuntimeError after max_sweeps short of it; max_sweeps a
+        non-negative integer); progress(sweeps, packing, acceptance) after
+        each sweep."""
+        self._mc.compress_to_packing(_integer(max_sweeps, "max_sweeps", 0), progress)
 
     def overlapping_pairs(self) -> int:
         """The pairs with mu < 1, by a full screen (0 for every state a sweep
@@ -633,7 +750,7 @@ class SkinNeighborList:
                typeid=None, box=None, **ignored) -> ScreenResult:
         """The pairs with mu < cutoff of the particles as they are now."""
         positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
-            "update", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored)
+            "update", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
         raw = self._list.update(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                                 None if b is None else b._core())
         return ScreenResult(raw, positions, b)
@@ -707,6 +824,17 @@ def _box_of(raw) -> Optional[Box]:
     return Box(lx, ly, lz, xy, xz, yz, is2D=dimensions == 2) if periodic else None
 
 
+def _readable(path) -> str:
+    """The path as a string, once opened for reading: a file that cannot be
+    read raises OSError here (FileNotFoundError when it does not exist),
+    as python3-gsd's open does for read_gsd, not the C++ readers'
+    RuntimeError."""
+    path = str(path)
+    with open(path, "rb"):
+        pass
+    return path
+
+
 def _scene(raw: dict) -> dict:
     return {"positions": raw["positions"], "q": raw["q"], "box": _box_of(raw["box"]), "typeid": raw["typeid"],
             "type_names": raw["type_names"], "id": raw["id"], "frame": raw["frame"]}
@@ -715,8 +843,9 @@ def _scene(raw: dict) -> dict:
 def read_lammps_data(path: str) -> dict:
     """A LAMMPS data file of atom_style ellipsoid (the C++ reader: shapes are
     diameters there, tilts lengths), as the keyword arguments of screen:
-    positions, q (forms), box, with typeid, type_names and id (atom ids)."""
-    return _scene(_core.read_lammps_data(str(path)))
+    positions, q (forms), box, with typeid, type_names and id (atom ids).
+    OSError (FileNotFoundError) for a file that cannot be opened."""
+    return _scene(_core.read_lammps_data(_readable(path)))
 
 
 def read_lammps_dump(path: str, frame: int = -1, columns: Optional[Mapping[str, str]] = None) -> dict:
@@ -725,20 +854,39 @@ def read_lammps_dump(path: str, frame: int = -1, columns: Optional[Mapping[str, 
     read_lammps_data. Columns are found by their usual names (x y z or xu yu
     zu, shapex shapey shapez, quatw quati quatj quatk); ``columns`` maps
     those names to others, e.g. {"shapex": "c_s[1]", ...} for a compute's."""
-    return _scene(_core.read_lammps_dump(str(path), int(frame), dict(columns or {})))
+    return _scene(_core.read_lammps_dump(_readable(path), _integer(frame, "frame"), dict(columns or {})))
 
 
 def read_gsd_native(path: str, frame: int = -1) -> dict:
     """The same frame through the library's own C++ GSD reader (forms q, not
     semi-axes), as read_lammps_data: for comparing with `pwcontact screen`."""
-    return _scene(_core.read_gsd(str(path), int(frame)))
+    return _scene(_core.read_gsd(_readable(path), _integer(frame, "frame")))
+
+
+# The largest max_aspect of the generated scenes: beyond ~1e7 the thinnest
+# spheroids' forms are no longer positive definite in double.
+_MAX_ASPECT = 1e6
+
+
+def _max_aspect(max_aspect) -> float:
+    a = float(max_aspect)
+    if not 1 <= a <= _MAX_ASPECT:
+        raise ValueError(f"max_aspect must be in 1 .. {_MAX_ASPECT:g}, got {max_aspect!r}")
+    return a
 
 
 def spheroid_scene(n: int, seed: int = 1, packing: float = 0.3, max_aspect: float = 3.0) -> dict:
     """The demo scene: n random spheroids (aspect 1/max_aspect .. max_aspect,
     volume of a sphere of radius 0.5) in a periodic cube at the packing
-    fraction, as the keyword arguments of screen."""
-    raw = _core.spheroid_scene(int(n), int(seed), float(packing), float(max_aspect))
+    fraction, as the keyword arguments of screen. n >= 1 and seed >= 0
+    integers; packing in (0, 1) (total spheroid volume over box volume, as
+    ``pwcontact demo --packing``); max_aspect in 1 .. 1e6 (ValueError naming
+    the argument otherwise)."""
+    p = float(packing)
+    if not 0 < p < 1:
+        raise ValueError(f"packing must be in (0, 1), got {packing!r}")
+    raw = _core.spheroid_scene(_integer(n, "n", 1), _integer(seed, "seed", 0, _UINT64_MAX), p,
+                               _max_aspect(max_aspect))
     return {"positions": raw["positions"], "orientations": raw["orientations"],
             "semi_axes": raw["semi_axes"], "box": _box_of(raw["box"])}
 
@@ -746,27 +894,71 @@ def spheroid_scene(n: int, seed: int = 1, packing: float = 0.3, max_aspect: floa
 class MovingScene:
     """A scene kept between calls for trial moves (Monte Carlo): insert,
     remove, move in O(1), and queries of a trial particle against every
-    stored one. Built from the arguments screen takes (positions and one of
-    semi_axes + orientations, type_semi_axes + typeid, q; box).
+    stored one. Built from the particles' arguments of screen, checked as
+    screen checks them: positions and one of semi_axes + orientations,
+    type_semi_axes + typeid (or semi_axes=(type_semi_axes, typeid)), q;
+    box; the keywords read_gsd / read_lammps_* return beside them accepted
+    and ignored (so that ``MovingScene(**read_gsd(path))`` works), any other
+    keyword a TypeError. In a 2D box every centre, stored or trial, has
+    z = 0 and every orientation is a rotation about z (ValueError naming the
+    particle, row or trial otherwise).
 
     A trial particle is given by ``position`` and one of ``semi_axes`` (with
-    ``orientation``), ``q``, or ``typeid`` (with ``orientation``).
+    ``orientation``), ``q`` (no orientation: the form holds it), or
+    ``typeid`` (a non-negative integer, with ``orientation``). ``exclude``
+    is None or -1 (no particle excluded) or the index of a stored particle
+    (IndexError naming it and the scene's size for one that does not
+    exist); indices and type ids that are not integers are a ValueError.
     """
 
     none = None
 
     def __init__(self, positions, orientations=None, semi_axes=None, *, q=None, type_semi_axes=None,
                  typeid=None, box=None, **ignored):
-        b = _as_box(box)
+        positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
+            "MovingScene", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
         self._box = b
-        self._scene = _core.MovingScene(np.asarray(positions, dtype=float), orientations, semi_axes, q,
-                                        type_semi_axes, typeid, None if b is None else b._core())
+        self._scene = _core.MovingScene(positions, orientations, semi_axes, q, type_semi_axes, typeid,
+                                        None if b is None else b._core())
 
     def __len__(self) -> int:
         return len(self._scene)
 
+    def _two_dimensional(self) -> bool:
+        return self._box is not None and self._box.is2D
+
     def _trial(self, position, orientation, semi_axes, q, typeid):
+        if orientation is not None and q is not None:
+            raise ValueError("orientation is given with q, which it would not change: the form q holds the "
+                             "orientation")
+        if typeid is not None:
+            typeid = _integer(typeid, "typeid", 0, 2**32 - 1)
+        if self._two_dimensional():
+            _check_in_plane(position, orientation, "trial")
         return self._scene.trial(position, orientation, semi_axes, q, typeid)
+
+    def _rows(self, positions, orientations, q, row: str) -> np.ndarray:
+        """The rows of overlaps_many / move_many, checked as a trial's."""
+        if orientations is not None and q is not None:
+            raise ValueError("orientations are given with q, which they would not change: the forms q hold "
+                             "the orientations")
+        positions = np.asarray(positions, dtype=float)
+        if self._two_dimensional():
+            _check_in_plane(positions, orientations, row)
+        return positions
+
+    @staticmethod
+    def _exclude(exclude) -> int:
+        # (A single query's exclude is checked against the scene by the
+        # binding, while it holds the scene: here only its kind, with the
+        # common case, a Python int, first: a query costs a few microseconds.)
+        if exclude is None:
+            return -1
+        if type(exclude) is not int:
+            exclude = _integer(exclude, "exclude")
+        if not -2**63 <= exclude < 2**63:
+            raise IndexError(f"exclude: particle {exclude} does not exist")
+        return exclude
 
     def overlaps(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
                  exclude: Optional[int] = None) -> Optional[int]:
@@ -774,14 +966,14 @@ class MovingScene:
         the scene's search order, or None; `exclude` is the index the trial
         would replace."""
         i = self._scene.overlaps(self._trial(position, orientation, semi_axes, q, typeid),
-                                 -1 if exclude is None else int(exclude))
+                                 self._exclude(exclude))
         return None if i < 0 else int(i)
 
     def overlap_count(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
                       exclude: Optional[int] = None) -> int:
         """How many stored particles the trial overlaps."""
         return self._scene.overlap_count(self._trial(position, orientation, semi_axes, q, typeid),
-                                         -1 if exclude is None else int(exclude))
+                                         self._exclude(exclude))
 
     def neighbors(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None,
                   cutoff: float = 1.0, with_mu2: bool = False,
@@ -789,45 +981,65 @@ class MovingScene:
         """(indices, mu2) of every stored particle with mu < cutoff (mu2 NaN
         unless with_mu2)."""
         return self._scene.neighbors(self._trial(position, orientation, semi_axes, q, typeid), float(cutoff),
-                                     bool(with_mu2), -1 if exclude is None else int(exclude))
+                                     bool(with_mu2), self._exclude(exclude))
 
     def overlaps_many(self, positions, orientations=None, semi_axes=None, *, q=None, exclude=None,
                       threads: int = 0) -> np.ndarray:
         """Many independent trials at once (e.g. one per domain of a
         checkerboard sweep): for each row, the index of a particle it
         overlaps (as overlaps() would answer it) or -1; identical to the
-        single queries whatever the thread count. positions (M, 3); shapes by
-        semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,);
-        exclude (M,) (-1: none). Returns (M,) int64."""
-        return self._scene.overlaps_many(np.asarray(positions, dtype=float), orientations, semi_axes, q, exclude,
-                                         int(threads))
+        single queries whatever the thread count. positions (M, 3 | 3,);
+        shapes by semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q
+        (M, 6 | 6,): M is the arrays' common row count, a single row
+        broadcast against the others (ValueError naming the arrays whose
+        row counts differ); exclude (M,) integers (-1: none; IndexError
+        for one that does not exist). Returns (M,) int64."""
+        positions = self._rows(positions, orientations, q, "trial")
+        if exclude is not None:
+            exclude = _integer_array(exclude, "exclude")
+            n = len(self._scene)
+            if exclude.ndim == 1:
+                bad = np.flatnonzero((exclude < -1) | (exclude >= n))
+                if len(bad):
+                    raise IndexError(f"exclude[{bad[0]}]: particle {exclude[bad[0]]} does not exist "
+                                     f"({n} particles; -1: none)")
+        return self._scene.overlaps_many(positions, orientations, semi_axes, q, exclude, int(threads))
 
     def move_many(self, indices, positions, orientations=None, semi_axes=None, *, q=None,
                   threads: int = 0) -> None:
         """Moves particles indices[k] to rows k of positions, with shapes by
-        semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,),
-        as move() one after another would. Moves whose old and new cells are
-        distinct from those of every other move (one per domain of a
-        checkerboard sweep) run on `threads` threads (0: all); otherwise in
-        order, in one thread. Every move is checked first: IndexError for an
-        index that does not exist, ValueError for a shape the store refuses,
-        each naming the move, and the scene unchanged."""
-        self._scene.move_many(indices, np.asarray(positions, dtype=float), orientations, semi_axes, q,
-                              int(threads))
+        semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,)
+        (rows broadcast as in overlaps_many), as move() one after another
+        would. Moves whose old and new cells are distinct from those of
+        every other move (one per domain of a checkerboard sweep) run on
+        `threads` threads (0: all); otherwise in order, in one thread. Every
+        move is checked first: ValueError for indices that are not integers,
+        IndexError for an index that does not exist, ValueError for a shape
+        the store refuses, each naming the move, and the scene unchanged."""
+        indices = _integer_array(indices, "indices")
+        positions = self._rows(positions, orientations, q, "move")
+        self._scene.move_many(indices, positions, orientations, semi_axes, q, int(threads))
 
     def insert(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> int:
         """Stores a particle; returns its index (len(scene) - 1)."""
         return self._scene.insert(self._trial(position, orientation, semi_axes, q, typeid))
 
+    def _index(self, i) -> int:
+        i = _integer(i, "the particle's index")
+        if i < 0:
+            raise IndexError(f"particle {i} does not exist ({len(self._scene)} particles)")
+        return i
+
     def remove(self, i: int) -> int:
         """Removes particle i; the last particle takes its index. Returns the
-        index that moved to i (or i when it was the last)."""
-        return self._scene.remove(int(i))
+        index that moved to i (or i when it was the last). IndexError for an
+        index that does not exist."""
+        return self._scene.remove(self._index(i))
 
     def move(self, i: int, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> None:
         """Particle i's new centre and shape (IndexError for an index that does
         not exist, ValueError for a shape the store refuses; unchanged then)."""
-        self._scene.move(int(i), self._trial(position, orientation, semi_axes, q, typeid))
+        self._scene.move(self._index(i), self._trial(position, orientation, semi_axes, q, typeid))
 
     @property
     def positions(self) -> np.ndarray:

@@ -716,6 +716,15 @@ std::array<double, N> numbers(const py::object& given, const char* name) {
 // share `lock_`, and the calls that change the scene hold it alone (each
 // takes it after releasing the GIL, and lets it go before taking the GIL
 // back, so that neither waits on the other while holding both).
+// A single query's `exclude`: a particle of the scene, or -1 for none (in
+// C++: an index that no particle has, checked here while the scene is held,
+// where the check costs nothing beside the query).
+void check_exclude(const pwcontact::MovingScene& scene, std::int64_t exclude) {
+  if (exclude != -1 && !(exclude >= 0 && std::uint64_t(exclude) < scene.size()))
+    throw py::index_error("exclude: particle " + std::to_string(exclude) + " does not exist (" +
+                          std::to_string(scene.size()) + " particles; -1 or None: none)");
+}
+
 class PyMovingScene {
  public:
   PyMovingScene(const py::object& positions, const py::object& orientations,
@@ -738,25 +747,26 @@ class PyMovingScene {
     return scene_.trial_typed(c, type_id.cast<std::uint32_t>(), o);
   }
 
-  // Trial particles from arrays: positions (M, 3) and one of semi_axes
-  // (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,); a bad one
-  // named by its row.
+  // Trial particles from arrays: positions (M, 3 | 3,) and one of
+  // semi_axes (M, 3 | 3,) with orientations (M, 4 | 4,), or q (M, 6 | 6,):
+  // M the arrays' common row count, a single row broadcast against the
+  // others (as contact_function broadcasts); a bad one named by its row.
   std::vector<pwcontact::ParticleStore::Particle> trials(const py::object& positions_in,
                                                          const py::object& orientations_in,
                                                          const py::object& semi_axes_in,
                                                          const py::object& q_in,
                                                          const char* what = "trial") const {
     const Rows<double> positions = rows_of<double>(positions_in, 3, "positions");
-    const std::size_t m = positions.broadcast ? 1 : positions.rows;
     const int given = int(!semi_axes_in.is_none()) + int(!q_in.is_none());
     if (given != 1) throw py::value_error("give the trials' shapes one way: semi_axes or q");
     const Rows<double> orientations = orientation_rows(orientations_in);
     const Rows<double> shape = q_in.is_none() ? rows_of<double>(semi_axes_in, 3, "semi_axes")
                                               : rows_of<double>(q_in, 6, "q");
-    common_rows({{positions.rows, positions.broadcast},
-                 {orientations.rows, orientations.broadcast},
-                 {shape.rows, shape.broadcast}},
-                {"positions", "orientations", q_in.is_none() ? "semi_axes" : "q"});
+    const std::size_t m =
+        common_rows({{positions.rows, positions.broadcast},
+                     {orientations.rows, orientations.broadcast},
+                     {shape.rows, shape.broadcast}},
+                    {"positions", "orientations", q_in.is_none() ? "semi_axes" : "q"});
     std::vector<pwcontact::ParticleStore::Particle> out;
     out.reserve(m);
     for (std::size_t k = 0; k < m; ++k) {
@@ -1190,13 +1200,16 @@ PYBIND11_MODULE(_pwcontact, m) {
       .def("overlaps",
            [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
               std::int64_t exclude) {
-             return s.query(
-                 [&](const pwcontact::MovingScene& scene) { return scene.overlaps(p, exclude); });
+             return s.query([&](const pwcontact::MovingScene& scene) {
+               check_exclude(scene, exclude);
+               return scene.overlaps(p, exclude);
+             });
            })
       .def("overlap_count",
            [](const PyMovingScene& s, const pwcontact::ParticleStore::Particle& p,
               std::int64_t exclude) {
              return s.query([&](const pwcontact::MovingScene& scene) {
+               check_exclude(scene, exclude);
                return scene.overlap_count(p, exclude);
              });
            })
@@ -1205,6 +1218,7 @@ PYBIND11_MODULE(_pwcontact, m) {
               bool with_mu2, std::int64_t exclude) {
              const std::vector<pwcontact::Neighbor> found =
                  s.query([&](const pwcontact::MovingScene& scene) {
+                   check_exclude(scene, exclude);
                    return scene.neighbors(p, cutoff, with_mu2, exclude);
                  });
              py::array_t<std::uint32_t> index{py::ssize_t(found.size())};
