@@ -1350,10 +1350,22 @@ TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
     EXPECT_NE(near.out, "") << name << ": compressed to contact, some pairs are near";
   }
   // Falling short: exit status 3, nothing written.
-  const Outcome short_of = run("mc --n 64 --packing 0.6 --sweeps 3 -o short.gsd");
+  const Outcome short_of = run("mc --n 216 --packing 0.6 --sweeps 3 -o short.gsd");
   EXPECT_EQ(short_of.exit_status, 3) << short_of.err;
   EXPECT_TRUE(contains(short_of.err, "short of 0.6")) << short_of.err;
   EXPECT_FALSE(fs::exists(path("short.gsd")));
+  // Too few for the packing fraction (64 at 0.35: a box of 4.57 against the
+  // 4.58 the compression's screens need): refused before the first sweep,
+  // a usage error naming the remedy, nothing written. Was: exit status 3
+  // sweeps later, with the screen's message about a cutoff never given.
+  const Outcome too_few = run("mc --n 64 --packing 0.35 -o few.gsd");
+  EXPECT_EQ(too_few.exit_status, 2) << too_few.err;
+  EXPECT_TRUE(contains(too_few.err, "64 particles are too few for the packing fraction"))
+      << too_few.err;
+  EXPECT_TRUE(contains(too_few.err, "take more particles or a lower packing fraction"))
+      << too_few.err;
+  EXPECT_FALSE(contains(too_few.err, "sweep 1,")) << too_few.err;
+  EXPECT_FALSE(fs::exists(path("few.gsd")));
 }
 
 }  // namespace

@@ -67,7 +67,7 @@ class HardParticleMC {
   // [1 / max_aspect, max_aspect], or with `shapes` > 0 drawn from that many
   // log-spaced over the range; random orientations) on a simple cubic
   // lattice of spacing 1.02 times the largest diameter: a dilute state with
-  // no overlap, packing fraction ~0.06 for max_aspect 3.
+  // no overlap, packing fraction ~0.055 for max_aspect 3.
   static HardParticleMC dilute_spheroids(std::size_t n, std::uint64_t seed, double max_aspect,
                                          const HardParticleMCOptions& options = {},
                                          std::size_t shapes = 0);
@@ -90,7 +90,10 @@ class HardParticleMC {
   // at most max_sweeps sweeps (std::runtime_error beyond, saying how far it
   // got); progress(sweeps done, packing, acceptance of the last sweep) after
   // each, may be empty. Every sweep is followed by compress(), whose full
-  // screen_pairs must find no overlap (std::logic_error otherwise).
+  // screen_pairs must find no overlap (std::logic_error otherwise). Throws
+  // std::invalid_argument before any sweep when the box at the packing
+  // fraction would be narrower than twice compress()'s reach, 1.1 times the
+  // largest diameter, across some axis (too few particles for it).
   void compress_to_packing(std::size_t max_sweeps = 100000,
                            const std::function<void(std::size_t, double, double)>& progress = {});
 

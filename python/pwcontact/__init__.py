@@ -687,7 +687,10 @@ class HardParticleMC:
         """Sweeps and compressions until the packing fraction given is
         reached (RuntimeError after max_sweeps short of it; max_sweeps a
         non-negative integer); progress(sweeps, packing, acceptance) after
-        each sweep."""
+        each sweep. ValueError before any sweep when the box at that
+        packing fraction would be narrower than twice 1.1 times the largest
+        diameter, which the screens after each sweep need (too few
+        particles for it)."""
         self._mc.compress_to_packing(_integer(max_sweeps, "max_sweeps", 0), progress)
 
     def overlapping_pairs(self) -> int:

@@ -254,8 +254,15 @@ def test_monte_carlo_compresses_without_ever_holding_an_overlap():
 
 def test_monte_carlo_from_arrays_and_bad_input():
     scene = pw.HardParticleMC.dilute_spheroids(20, seed=5).scene()
+    # 20 spheroids at 0.2 would need a box narrower than the compression's
+    # screens allow: refused before any sweep.
+    few = pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"], box=scene["box"],
+                            packing=0.2, seed=9)
+    with pytest.raises(ValueError, match="20 particles are too few for the packing fraction"):
+        few.compress_to_packing()
+    assert few.sweeps == 0
     mc = pw.HardParticleMC(scene["positions"], scene["orientations"], scene["semi_axes"], box=scene["box"],
-                           packing=0.2, seed=9)
+                           packing=0.1, seed=9)
     assert abs(mc.packing - pw.HardParticleMC.dilute_spheroids(20, seed=5).packing) < 1e-12
     mc.sweep()
     assert min_mu2(mc.scene()) >= 1

@@ -38,11 +38,13 @@ OptionParser mc_parser(McOptions& options) {
       "particles: a move is accepted when the moved spheroid overlaps nothing, decided "
       "exactly by the contact function) on a moving scene. N spheroids of 16 shapes "
       "(aspect ratios log-spaced over 1/3 .. 3, each with the volume of a sphere of radius "
-      "0.5, random orientations) start on a simple cubic lattice (packing fraction ~0.06) "
+      "0.5, random orientations) start on a simple cubic lattice (packing fraction ~0.055) "
       "in a periodic box, which is compressed after every sweep as far as the exact mu of "
       "the closest pair allows (halfway to contact: never an overlap), until the packing "
       "fraction is reached. After every sweep a full screen of the scene must find no "
-      "overlap (else the run stops with an error, exit status 3). Sweeps are checkerboard "
+      "overlap (else the run stops with an error, exit status 3). Too few spheroids for the "
+      "packing fraction (a box narrower than twice 1.1 times the largest diameter, which the "
+      "screens need) is refused before the first sweep (exit status 2). Sweeps are checkerboard "
       "sweeps of batched trial queries in scenes of many cells (the same result for every "
       "thread count), one trial at a time in small ones. Standard error shows the progress, "
       "the step sizes and the acceptance rate; the final scene goes to -o FILE: GSD (.gsd: "
@@ -201,6 +203,9 @@ ExitStatus run_mc(const Arguments& arguments) {
       });
     } catch (const std::runtime_error& e) {
       throw CommandError(ExitStatus::failed, e.what());
+    } catch (const std::invalid_argument& e) {
+      // (Before any sweep: --n too small for --packing.)
+      throw CommandError(ExitStatus::usage_error, e.what());
     } catch (const std::logic_error& e) {
       throw CommandError(ExitStatus::failed, e.what());
     }

@@ -20,6 +20,10 @@ namespace {
 
 constexpr double pi = 3.14159265358979323846;
 
+// compress()'s screens: pairs with mu below it bound how far the box may
+// shrink (halfway to contact), those beyond it leave the full step.
+constexpr double compress_cutoff = 1.1;
+
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -334,7 +338,7 @@ double HardParticleMC::compress() {
   const double target = s.options.packing;
   const double now_packing = packing();
   ScreenOptions options;
-  options.cutoff = 1.1;
+  options.cutoff = compress_cutoff;
   options.with_mu2 = true;
   options.threads = s.options.threads;
   options.batch = s.options.batch;
@@ -363,6 +367,26 @@ void HardParticleMC::compress_to_packing(
     std::size_t max_sweeps, const std::function<void(std::size_t, double, double)>& progress) {
   State& s = *state_;
   const double target = s.options.packing * (1 - 1e-12);
+  // The box this reaches must still hold compress()'s screens (its
+  // cutoff): too few particles for the packing fraction leave a
+  // box narrower than twice that reach, and the run used to stop there,
+  // sweeps later, with the screen's message about a cutoff never given.
+  if (packing() < s.options.packing) {
+    double largest = 0;
+    for (const auto& a : s.semi_axes) largest = std::max({largest, a[0], a[1], a[2]});
+    const double scale = std::cbrt(packing() / s.options.packing);
+    const std::array<double, 3> widths = s.box.perpendicular_widths();
+    const double needed = 2 * compress_cutoff * 2 * largest;
+    for (int k = 0; k < 3; ++k)
+      if (!(widths[k] * scale >= needed))
+        throw std::invalid_argument(
+            "HardParticleMC: " + std::to_string(s.semi_axes.size()) +
+            " particles are too few for the packing fraction " + std::to_string(s.options.packing) +
+            ": its box would be " + std::to_string(widths[k] * scale) + " wide across axis " +
+            std::to_string(k) + ", less than the " + std::to_string(needed) +
+            " that the screens of the compression need (twice 1.1 times the largest "
+            "diameter); take more particles or a lower packing fraction");
+  }
   std::size_t done = 0;
   while (packing() < target) {
     if (done >= max_sweeps)
