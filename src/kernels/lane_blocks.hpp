@@ -493,7 +493,10 @@ struct CompressFour {
 inline constexpr CompressFour compress_four{};
 
 // The lanes of four doubles selected by `mask` (4 bits) moved to the front,
-// in order, by the permutation compress_four gives.
+// in order, by the permutation compress_four gives. (A template, made only
+// where an AVX2 branch calls it: as a plain function the SSE2 target's
+// translation unit compiled it too, and warned of its AVX return type.)
+template <int = 0>
 PWCONTACT_INLINE __m256d compress_four_doubles(__m256d values, unsigned mask) {
   const __m256i permutation =
       _mm256_load_si256(reinterpret_cast<const __m256i*>(compress_four.halves[mask]));
