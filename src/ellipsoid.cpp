@@ -85,9 +85,18 @@ QuadraticForm quadratic_form_from_quaternion(const std::array<double, 3>& semi_a
 
 QuadraticForm spheroid(double a, double c, const std::array<double, 3>& axis) {
   Eigen::Vector3d n(axis[0], axis[1], axis[2]);
-  const double norm = n.norm();
-  if (!(norm > 0) || !std::isfinite(norm))
-    throw std::invalid_argument("spheroid: zero or non-finite axis");
+  double norm = n.norm();
+  if (!(norm > 0) || !std::isfinite(norm)) {
+    // A finite, non-zero axis whose sum of squares under- or overflows
+    // (components below ~1e-154 or above ~1e154) is brought to a largest
+    // component in [1, 2) by a power of two first (exact); only a zero or
+    // non-finite one is refused.
+    const double largest = n.cwiseAbs().maxCoeff();
+    if (!n.allFinite() || !(largest > 0))
+      throw std::invalid_argument("spheroid: zero or non-finite axis");
+    n *= std::ldexp(1.0, -std::ilogb(largest));
+    norm = n.norm();
+  }
   n /= norm;
   const double a2 = a * std::abs(a), c2 = c * std::abs(c);  // signed, as in from_rotation
   const Eigen::Matrix3d q = a2 * Eigen::Matrix3d::Identity() + (c2 - a2) * n * n.transpose();

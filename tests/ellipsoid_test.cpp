@@ -171,6 +171,25 @@ TEST(Spheroid, PolarRadiusAlongTheAxisEquatorialRadiusAcross) {
 
 TEST(Spheroid, ZeroAxisThrows) {
   EXPECT_THROW(pwcontact::spheroid(1, 2, {0, 0, 0}), std::invalid_argument);
+  EXPECT_THROW(pwcontact::spheroid(1, 2, {NAN, 0, 1}), std::invalid_argument);
+  EXPECT_THROW(pwcontact::spheroid(1, 2, {INFINITY, 0, 1}), std::invalid_argument);
+}
+
+// An axis of any finite, non-zero length gives the spheroid of the unit
+// axis, bit for bit where its sum of squares under- or overflows too (was:
+// "zero or non-finite axis" for 1e-300 or 1e200).
+TEST(Spheroid, AnAxisOfAnyFiniteLengthIsTheUnitAxis) {
+  const std::array<double, 3> unit = {0.6, 0, 0.8};
+  const QuadraticForm expected = pwcontact::spheroid(0.5, 2, unit);
+  for (double scale : {0x1p-1000, 0x1p-600, 0x1p-30, 1.0, 0x1p30, 0x1p600, 0x1p1000}) {
+    const QuadraticForm q =
+        pwcontact::spheroid(0.5, 2, {unit[0] * scale, unit[1] * scale, unit[2] * scale});
+    for (int k = 0; k < 6; ++k)
+      EXPECT_EQ(q[k], expected[k]) << "scale " << scale << ", entry " << k;
+  }
+  const QuadraticForm along_x = pwcontact::spheroid(0.5, 2, {1e-300, 0, 0});
+  EXPECT_EQ(along_x[0], 4.0);
+  EXPECT_EQ(along_x[3], 0.25);
 }
 
 TEST(Sphere, IsSquaredRadiusTimesIdentity) {
