@@ -3,6 +3,7 @@
 // against the reference path.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
@@ -124,6 +125,84 @@ TEST(SkinNeighborList, EveryStepIsTheFreshScreenAndTheListIsKeptWhileTheSkinAllo
     EXPECT_GT(kept, 30u) << "the list is kept while the moves are small";
     EXPECT_GE(list.rebuilds(), 4u) << "and rebuilt after the jumps (and as the moves add up)";
   }
+}
+
+// Centres given many box lengths away (an unwrapped trajectory): a kept
+// list's mu^2 are the fresh screen's to 1e-12, as at the box. Was: the kept
+// pairs' separations were differences of the centres as given, which lost
+// eps |x| (2e-9 of mu^2 at 10^6 box lengths).
+TEST(SkinNeighborList, CentresManyBoxLengthsAwayKeepTheListAndItsAccuracy) {
+  Moving m = random_scene(600, 8, 5, false);
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.3;
+  options.skin = 0.2;
+  std::mt19937_64 engine(6);
+  for (double lengths : {1e3, 1e6}) {
+    pwcontact::SkinNeighborList list(options);
+    pwcontact::ScreenedPairs pairs;
+    list.update(m.store(), m.box, pairs);
+    Moving far = m;
+    for (auto& c : far.centre)
+      for (double& x : c) x += 8 * lengths * double(int(engine() % 3) - 1);
+    const ParticleStore s = far.store();
+    const pwcontact::SkinReport r = list.update(s, far.box, pairs);
+    ASSERT_FALSE(r.rebuilt) << lengths;
+    pwcontact::ScreenedPairs fresh;
+    pwcontact::ScreenOptions screen_options;
+    screen_options.cutoff = options.cutoff;
+    screen_options.with_mu2 = true;
+    pwcontact::screen_pairs(s, far.box, screen_options, fresh);
+    ASSERT_EQ(pairs.size(), fresh.size()) << lengths;
+    ASSERT_GT(pairs.size(), 100u);
+    double worst = 0;
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      ASSERT_EQ(pairs.i[k], fresh.i[k]);
+      ASSERT_EQ(pairs.j[k], fresh.j[k]);
+      worst = std::max(worst, std::abs(pairs.mu2[k] - fresh.mu2[k]) / fresh.mu2[k]);
+    }
+    // (Both the batch path's answers, from different starts.)
+    EXPECT_LT(worst, 1e-12) << lengths << " box lengths";
+  }
+}
+
+// Ellipses in a 2D box whose third semi-axis (which the plane never sees)
+// is far smaller than the other two: the skin is measured against the
+// in-plane inscribed radius, so small moves keep the list, and every step
+// is still the fresh screen's. Was: rho was the third semi-axis, 1e-3, and
+// every step rebuilt.
+TEST(SkinNeighborList, FlatEllipsesInAPlaneKeepTheListWhileTheirMovesAreSmall) {
+  std::mt19937_64 engine(31);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const double length = 20;
+  const Box box = Box::two_dimensional_box(length, length);
+  std::vector<std::array<double, 3>> centre, axes;
+  std::vector<double> angle;
+  for (int i = 0; i < 400; ++i) {
+    centre.push_back({length * unit(engine), length * unit(engine), 0});
+    const double a = 0.4 + 0.4 * unit(engine);
+    axes.push_back({a, a * (0.3 + 0.6 * unit(engine)), 1e-3});
+    angle.push_back(6.283185307179586 * unit(engine));
+  }
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.2;
+  options.skin = 0.2;
+  pwcontact::SkinNeighborList list(options);
+  std::size_t kept = 0;
+  for (int step = 0; step < 30; ++step) {
+    ParticleStore s;
+    for (std::size_t i = 0; i < centre.size(); ++i)
+      s.add_axes(centre[i], axes[i], {std::cos(angle[i] / 2), 0, 0, std::sin(angle[i] / 2)});
+    pwcontact::ScreenedPairs pairs;
+    const pwcontact::SkinReport r = list.update(s, box, pairs);
+    kept += !r.rebuilt;
+    expect_same(pairs, s, box, options.cutoff, "2D, step " + std::to_string(step));
+    for (std::size_t i = 0; i < centre.size(); ++i) {
+      centre[i][0] += 0.004 * (2 * unit(engine) - 1);
+      centre[i][1] += 0.004 * (2 * unit(engine) - 1);
+      angle[i] += 0.004 * (2 * unit(engine) - 1);
+    }
+  }
+  EXPECT_GT(kept, 15u) << "the list is kept while the moves are small";
 }
 
 TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {

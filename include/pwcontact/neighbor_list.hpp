@@ -16,6 +16,9 @@
 // mu_cut + m_i, m_i = (d_i + mu_cut t_i) / rho_i (a ball of radius x lies in
 // x / rho_i times the ellipsoid), and two particles with mu < mu_cut now had
 // mu < mu_cut + max(m_i, m_j) then. The list is kept while every m_i <= skin.
+// In a 2D box only the directions in the plane matter, and rho_i is the
+// in-plane inscribed radius (of the x-y block of Q_i), which a third
+// semi-axis smaller than the other two does not shrink.
 // (For a turn by theta of semi-axes a >= c, |Q' - Q|_F is at most about
 // sqrt(2) (a^2 - c^2) theta.)
 //

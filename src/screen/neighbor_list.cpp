@@ -25,6 +25,25 @@ bool same_box(const Box& a, const Box& b) {
          a.length == b.length && a.tilt == b.tilt;
 }
 
+// In a 2D box: a lower bound on the in-plane inscribed radius of the form q
+// (the square root of the smaller eigenvalue of its x-y block), at least
+// `inscribed`, the 3D one. Eq. 34's support bound needs sqrt(n^T Q n) >= rho
+// only for the directions n in the plane, where the contact of two ellipses
+// lives; the third semi-axis, which the plane never sees, may be far
+// smaller (a flat ellipsoid), and made every small move a rebuild. The
+// smaller eigenvalue, det / lambda_max, is taken less its rounding: the
+// determinant's cancellation errs by at most ~4 eps (q_xx q_yy + q_xy^2) <=
+// 8 eps lambda_max^2, i.e. 8 eps lambda_max / lambda_min relatively; 16 eps
+// times that ratio is taken off.
+double in_plane_inscribed(const double q[6], double inscribed) {
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  const double half_sum = 0.5 * (q[0] + q[3]), half_difference = 0.5 * (q[0] - q[3]);
+  const double largest = half_sum + std::hypot(half_difference, q[1]);
+  const double smallest = (q[0] * q[3] - q[1] * q[1]) / largest;
+  const double safe = smallest * (1 - 16 * eps * largest / smallest);
+  return safe > inscribed * inscribed ? std::sqrt(safe) : inscribed;
+}
+
 }  // namespace
 
 SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(options) {
@@ -77,6 +96,11 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
     for (int k = 0; k < 6; ++k) q_[k] = particles.q(k);
     inscribed_ = particles.inscribed_radius();
+    if (box.two_dimensional)
+      for (std::size_t i = 0; i < n; ++i) {
+        const double q[6] = {q_[0][i], q_[1][i], q_[2][i], q_[3][i], q_[4][i], q_[5][i]};
+        inscribed_[i] = in_plane_inscribed(q, inscribed_[i]);
+      }
     ++rebuilds_;
     out = ScreenedPairs();
     for (std::size_t k = 0; k < listed_.size(); ++k)
@@ -105,7 +129,10 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
   const std::size_t listed = first_.size();
   // Each particle's numbers side by side (80 bytes, where the store keeps
   // them in ten arrays): a pair's second particle is anywhere in memory, and
-  // its gather then touches two cache lines, not ten.
+  // its gather then touches two cache lines, not ten. The centres wrapped
+  // into the box first, as the screen's are: the difference of centres
+  // given many box lengths away (unwrapped trajectories) lost eps |x|, and
+  // the kept pairs' mu^2 with it (2e-9 relatively at 1e6 box lengths).
   struct Packed {
     double centre[3], q[6], bounding;
   };
@@ -115,7 +142,9 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
 #pragma omp parallel for num_threads(threads) schedule(static)
     for (std::size_t i = 0; i < n; ++i) {
       Packed& p = packed[i];
-      for (int d = 0; d < 3; ++d) p.centre[d] = particles.centre(d)[i];
+      const double given[3] = {particles.centre(0)[i], particles.centre(1)[i],
+                               particles.centre(2)[i]};
+      geometry.wrap(given, p.centre);
       for (int d = 0; d < 6; ++d) p.q[d] = particles.q(d)[i];
       p.bounding = bounding[i];
     }
