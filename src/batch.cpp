@@ -542,7 +542,16 @@ template <class T>
 bool answer_overlap_with_reference(const PairBatchView<T>& pairs, const OverlapOutputs& out,
                                    std::size_t i, double cutoff_mu2) {
   const ScalarPair p = scalar_pair(pairs, i);
-  const ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+  ContactResult<double> ref = contact_function<double>(p.r, p.q1, p.q2);
+  // The double reference path errs by up to ~16 eps cond(Q(lambda*)): 4e-7
+  // at cond 1e8, where the overlap answers promise the side of the cutoff
+  // beyond 1e-9 of it (a pair 6e-9 beyond tangency at cond 7e7 was answered
+  // overlapping). Within 1e-6 of the cutoff (cond to ~3e8) the long-double
+  // path decides, whose error there is below 16 eps_ld cond ~ 2e-10.
+  if (ref.status == Status::ok && std::abs(ref.mu2 - cutoff_mu2) <= 1e-6 * cutoff_mu2) {
+    const ContactResult<double> refined = reference_in_long_double(p);
+    if (refined.status == Status::ok) ref = refined;
+  }
   // A mu^2 out of range (infinite, or below the smallest normal number)
   // still decides the overlap exactly.
   const bool solved = ref.status == Status::ok || ref.status == Status::out_of_range;

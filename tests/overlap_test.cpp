@@ -174,6 +174,74 @@ void expect_agrees_with_exact(const Classified& f, const Setting& setting, Isa i
   expect_report_accounts_for_every_pair(run, f.mu2.size(), what);
 }
 
+// Needles and discs (semi-axes 1, 1 and an aspect ratio of 10^2 .. 10^4,
+// or the flat counterpart), random orientations (cond(Q(lambda*)) up to
+// ~1e8, the documented reach of the band), at 2e-9 .. 1e-7 of tangency,
+// both sides: the pairs the kernels leave go to the reference path, whose
+// double answer errs by up to ~16 eps cond (4e-7). Was: 7 of 7,985 such
+// pairs answered on the wrong side (status ok_fallback), the first of them
+// below, 6.3e-9 beyond tangency at cond 7e7; the long-double path now
+// decides near the cutoff. The oracle: the 50-digit one (long double, the
+// path that decides, would not be an independent check).
+Classified ill_conditioned_near_tangent() {
+  std::mt19937_64 engine(97);
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::vector<Pair<double>> shapes;
+  Pair<double> first;
+  first.r12 = {9.474108888637145, 16.844973084334445, 6.521373887934123};
+  first.q1 = {78931354.57929142,  122418605.71880941, -35223678.58431226,
+              189865179.39624625, -54630175.80618247, 15718820.627493534};
+  first.q2 = {2448.658518896454,  23502.06296282362,  -96831.35096673893,
+              225624.57360074657, -929598.2600353714, 3830058.194158628};
+  auto form = [&]() {
+    const double aspect = std::pow(10.0, 2 + 2 * unit(engine));
+    const Eigen::Vector3d axes =
+        unit(engine) < 0.5 ? Eigen::Vector3d(1, 1, aspect) : Eigen::Vector3d(aspect, aspect, 1);
+    const Eigen::Matrix3d r = random_rotation(engine);
+    return pack(r * axes.cwiseProduct(axes).asDiagonal() * r.transpose());
+  };
+  for (int k = 0; k < 3000; ++k) {
+    Pair<double> p;
+    p.q1 = form();
+    p.q2 = form();
+    const Eigen::Matrix3d r = random_rotation(engine);
+    for (int d = 0; d < 3; ++d) p.r12[d] = r(d, 0);
+    shapes.push_back(p);
+  }
+  const auto base = long_double_oracles(shapes);
+  std::vector<Pair<double>> pairs = {first};
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const long double offset = std::pow(10.0L, -8.7L + 1.7L * (long double)unit(engine));
+    pairs.push_back(scaled_to_mu2(shapes[i], base[i].mu2, i % 2 ? 1 + offset : 1 - offset));
+  }
+  Classified out{std::move(pairs), {}, {}};
+  for (const auto& result : fifty_digit_oracles(out.pairs)) {
+    EXPECT_EQ(result.status, Status::ok);
+    out.mu2.push_back(result.mu2);
+  }
+  out.batch = make_batch(out.pairs);
+  return out;
+}
+
+TEST(OverlapFallback, IllConditionedPairsNearTangencyAreDecidedOnTheirSide) {
+  const Classified f = ill_conditioned_near_tangent();
+  for (Isa isa : isas())
+    for (Precision precision : {Precision::double_precision, Precision::mixed}) {
+      const std::string what = std::string("needles and discs near tangency, ") +
+                               pwcontact::isa_name(isa) + ", " +
+                               pwcontact::precision_name(precision);
+      const OverlapRun run = run_overlap(f.batch, with_precision(with_isa(isa, 0), precision), 1.0);
+      const Classification c = classify(run, f.mu2, 1.0);
+      std::printf("[ measured ] %s: %zu wrong outside the band (%zu in it), %zu by the reference\n",
+                  what.c_str(), c.wrong, c.in_band, run.report.fallbacks);
+      EXPECT_EQ(c.malformed, 0u) << what;
+      EXPECT_EQ(c.wrong, 0u) << what << ", first pair " << c.first_wrong
+                             << ": mu2 - 1 = " << double(f.mu2[c.first_wrong] - 1) << ", overlap "
+                             << int(run.overlap[c.first_wrong]);
+      EXPECT_GT(run.report.fallbacks, 500u) << what << ": the pairs reach the reference path";
+    }
+}
+
 class Overlap : public ::testing::TestWithParam<std::tuple<FamilyName, Isa>> {};
 
 TEST_P(Overlap, AgreesWithTheExactClassificationOutsideTheDocumentedBand) {
