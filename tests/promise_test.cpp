@@ -1201,6 +1201,62 @@ TEST_P(Promise, AccuracyHighMeetsItsDocumentedBound) {
   }
 }
 
+// Needles and discs of aspect ratios 1e5 .. 1e6 and sizes up to 1e3 apart
+// (lambda* within ~1e-4 of 0 or 1, cond(Q(lambda*)) 1e7 .. 1e9), mu around
+// 0.3 .. 3, random directions: f is flat in lambda there (g' small), and the
+// gain g^2 / (2 g') of the unrefined g is mostly noise. Was: with mu^2 alone
+// asked for, a gain up to 1e-11 f was added to the refined f, 36 times the
+// bound with status ok (1.5e-13 at cond 3.3e7); in double and in mixed.
+std::vector<Pair<double>> needle_and_disc_pairs(std::size_t n, std::uint64_t seed) {
+  Engine engine(seed);
+  std::vector<Pair<double>> pairs;
+  auto form = [&](double size) {
+    const double aspect = std::pow(10.0, 5 + uniform01(engine));
+    const std::array<double, 3> axes =
+        uniform01(engine) < 0.5 ? std::array<double, 3>{size, size, size * aspect}
+                                : std::array<double, 3>{size * aspect, size * aspect, size};
+    return oriented(axes, random_rotation(engine));
+  };
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto q1 = form(1), q2 = form(std::pow(10.0, 3 * uniform01(engine)));
+    const Eigen::Matrix3d r = random_rotation(engine);
+    const double d = std::pow(10.0, 6 * uniform01(engine) - 1);
+    pairs.push_back(make_pair({d * r(0, 0), d * r(1, 0), d * r(2, 0)}, q1, q2));
+  }
+  return pairs;
+}
+
+TEST_P(Promise, AccuracyHighMeetsItsBoundWhereTheGainIsNoise) {
+  const double long_double_eps = std::numeric_limits<long double>::epsilon();
+  const Solved set = solved(needle_and_disc_pairs(1500, 931));
+  for (Precision precision : {Precision::double_precision, Precision::mixed})
+    for (bool lambda_asked : {false, true}) {
+      const std::string label =
+          what("needles and discs, sizes to 1e3 apart", GetParam(), precision) + ", accuracy high" +
+          (lambda_asked ? ", with lambda" : ", mu2 only");
+      Requested requested;
+      requested.lambda = lambda_asked;
+      const BatchRun<double> run =
+          run_batch(make_batch(set.pairs),
+                    with_precision(with_isa(GetParam()), precision,
+                                   pwcontact::Formulation::automatic, Accuracy::high),
+                    requested);
+      MaxError kernel, fallback;
+      for (std::size_t i = 0; i < set.pairs.size(); ++i) {
+        if (set.exact[i].status != Status::ok || !pwcontact::is_valid(run.status[i])) continue;
+        const double error = relative_error(run.mu2[i], set.exact[i].mu2);
+        const double c = set.condition[i];
+        const double bound =
+            run.status[i] == Status::ok ? eps + eps * c * eps * c : eps + long_double_eps * c;
+        (run.status[i] == Status::ok ? kernel : fallback).add(i, error / bound);
+        EXPECT_LE(error, floor_factor * bound) << label << ", pair " << i << ", cond " << c << ", "
+                                               << pwcontact::status_name(run.status[i]);
+      }
+      print_measured(label + ", status ok: error / (eps + (eps cond)^2)", kernel);
+      print_measured(label + ", ok_fallback: error / (eps + eps_ld cond)", fallback);
+    }
+}
+
 // The reference path on the same family: noise in g of ~eps cond(Q) mu^2
 // once made Newton alternate between the two ends of its bracket, each step
 // landing exactly on the other end, until max_iterations: not_converged on

@@ -264,8 +264,10 @@ class FullBlock : public LaneGroups<Arch, T> {
   FullBlock(const ChunkSettings& settings, ChunkCounters& counters, FullKept<T>& kept)
       : Base(settings, counters),
         kept_(kept),
-        gain_tolerance_(settings.outputs != 0 ? KernelTolerance<T>::corrected_gain_with_lambda
-                                              : KernelTolerance<T>::corrected_gain) {}
+        gain_tolerance_(settings.accuracy == Accuracy::high
+                            ? KernelTolerance<T>::corrected_gain_high
+                        : settings.outputs != 0 ? KernelTolerance<T>::corrected_gain_with_lambda
+                                                : KernelTolerance<T>::corrected_gain) {}
 
   // A first pass's block, loaded from position `from` of `in` and answered at
   // position `position` of the chunk (they differ for a padded tail), `real`
@@ -407,6 +409,14 @@ class FullBlock : public LaneGroups<Arch, T> {
       if constexpr (KernelTolerance<T>::checks_growth) {
         hopeless = growth(e.ldlt, e.q) > B(KernelTolerance<T>::max_growth);
         done = done & !hopeless;
+      }
+      // Accuracy::high with lambda* near 0 or 1: f is flat there and the
+      // unrefined g that decides convergence is mostly noise; such a lane
+      // goes to the reference path in long double now.
+      if (settings_.accuracy == Accuracy::high) {
+        const M near_end = xsimd::min(e.lambda, e.mu) < B(KernelTolerance<T>::high_width);
+        hopeless = hopeless | near_end;
+        done = done & !near_end;
       }
 
       Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}};

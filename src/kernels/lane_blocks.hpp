@@ -43,6 +43,14 @@ struct KernelTolerance<double> {
   // lambda to ~1e-12 (and the peer library's check, mu1^2 = mu2^2 = mu^2 at
   // the returned lambda, to ~1e-11 on its family).
   static constexpr double corrected_gain_with_lambda = 1e-13;
+  // Accuracy::high: the refined f is good to ~eps, but the gain comes from
+  // the unrefined g, whose noise (~eps cond f) becomes a spurious gain where
+  // g' is small (lambda* near 0 or 1, crossed needles and discs): up to the
+  // tolerance itself. A gain is added only when it is this small, so that
+  // even all noise it errs by a few eps (was 1e-11: 36 times the high
+  // accuracy bound on needles of aspect 1e5 with status ok).
+  static constexpr double corrected_gain_high = 4 * std::numeric_limits<double>::epsilon();
+  static constexpr double high_width = 1e-3;
   static constexpr double bounded_gain = 4 * std::numeric_limits<double>::epsilon();
   // The corrected answer f + gain errs by the third-order term of the Newton
   // model, ~(1/3) |g''/g'| |step| gain. Near the ends of [0, 1], where g has
@@ -94,6 +102,8 @@ struct KernelTolerance<float> {
   // (float: measured at the float floor for gains up to 1e-5 f on random pairs)
   static constexpr float corrected_gain = 1e-5f;
   static constexpr float corrected_gain_with_lambda = 1e-7f;
+  static constexpr float corrected_gain_high = 4 * std::numeric_limits<float>::epsilon();
+  static constexpr float high_width = 1e-3f;
   static constexpr float bounded_gain = 4 * std::numeric_limits<float>::epsilon();
   static constexpr float third_order = std::numeric_limits<float>::epsilon();
   // lambda within ~1.5 (2^-11)^2 w ~ 4e-7 w: the float floor of lambda.
