@@ -396,6 +396,12 @@ class FullBlock : public LaneGroups<Arch, T> {
     this->count_evaluations(1);
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       Evaluation<B> e = evaluate(pair_[u], lambda_[u]);
+      // Accuracy::high: f, s and g refined before the step and the test read g.
+      Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}, e.g};
+      if (settings_.accuracy == Accuracy::high) {
+        answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
+        e.g = answer.g;
+      }
       const M newton = this->advance(e, u);
       const Convergence<B> test = convergence_test<T>(e, lo_[u], hi_[u], newton,
                                                       settings_.formulation == Formulation::newton,
@@ -419,9 +425,6 @@ class FullBlock : public LaneGroups<Arch, T> {
         done = done & !near_end;
       }
 
-      Refined<B> answer{e.f, {e.s[0], e.s[1], e.s[2]}};
-      if (settings_.accuracy == Accuracy::high)
-        answer = refined_f(pair_[u], e.ldlt, e.lambda, e.mu, answer);
       answer.f = xsimd::select(corrected, answer.f + gain, answer.f);
       // A valid answer is a normal number of T (f > 0 inside (0, 1) for
       // distinct centres, and finite as every quantity of a lane in range;

@@ -367,10 +367,14 @@ struct Compensated {
 // (not from the rounded Q(lambda)), then rᵀs accumulated error-free. Takes
 // copies (a cold call must not make the caller's registers escape to memory)
 // and returns f and the refined s.
+// With the refined s also g = lambda^2 s^T Q2 s - mu^2 s^T Q1 s (eq. 13)
+// again: from the rounded s its noise is ~eps cond f / w, which the
+// convergence test's gain and bound would otherwise take at face value.
 template <class B>
 struct Refined {
   B f;
   B s[3];
+  B g;
 };
 
 template <class B>
@@ -396,10 +400,18 @@ PWCONTACT_COLD Refined<B> refined_f(const PairLanes<B> p, const Ldlt<B> ldlt, co
   B y[3], correction[3];
   forward(ldlt, residual, y);
   backward(ldlt, y, correction);
-  for (int i = 0; i < 3; ++i) current.s[i] += correction[i];
+  // r^T s as r^T s + r^T correction, both accumulated, before s + correction
+  // is rounded: where r is nearly orthogonal to s (r^T s << |r| |s|, ill-
+  // conditioned Q), that rounding alone cost f ~eps |r| |s| / r^T s.
   Compensated<B> rs{B(0), B(0)};
   for (int i = 0; i < 3; ++i) rs.add_product(p.r[i], current.s[i]);
+  for (int i = 0; i < 3; ++i) rs.add_product(p.r[i], correction[i]);
+  for (int i = 0; i < 3; ++i) current.s[i] += correction[i];
   current.f = lambda * mu * rs.value();
+  B q1s[3], q2s[3];
+  symmetric_times(p.q1, current.s, q1s);
+  symmetric_times(p.q2, current.s, q2s);
+  current.g = lambda * lambda * dot3(current.s, q2s) - mu * mu * dot3(current.s, q1s);
   return current;
 }
 
