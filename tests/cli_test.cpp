@@ -1368,4 +1368,50 @@ TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
   EXPECT_FALSE(fs::exists(path("few.gsd")));
 }
 
+TEST_F(cli, McWritesItsWholeSceneOrNothingAndChecksItsOutputFirst) {
+  // A long path: the text header once went through a 400-character buffer,
+  // which cut its last newline and put particle 0 into a comment line.
+  const std::string directory(150, 'd');
+  fs::create_directory(path(directory));
+  const std::string name = directory + "/scene.txt";
+  const Outcome mc = run("mc --n 64 --packing 0.2 -o " + name);
+  ASSERT_EQ(mc.exit_status, 0) << mc.err;
+  const std::string text = read_file(name);
+  std::size_t comments = 0, particles = 0;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);)
+    ++(line.rfind("#", 0) == 0 ? comments : particles);
+  EXPECT_EQ(comments, 3u) << text.substr(0, 600);
+  EXPECT_EQ(particles, 64u) << text.substr(0, 600);
+  // The command the header gives reads it back whole.
+  const std::size_t at = text.find("pwcontact screen ");
+  ASSERT_NE(at, std::string::npos);
+  const std::size_t from = at + std::string("pwcontact ").size();
+  const std::string command = text.substr(from, text.find('\n', at) - from);
+  const Outcome screen = run(command);
+  ASSERT_EQ(screen.exit_status, 0) << screen.err;
+  EXPECT_TRUE(contains(screen.err, "64 ellipsoids")) << screen.err;
+
+  // A path that cannot be written is refused before the run (an input/output
+  // error; it was found after the whole compression).
+  const Outcome nowhere = run("mc --n 64 --packing 0.2 -o no/such/directory/scene.gsd");
+  EXPECT_EQ(nowhere.exit_status, 1) << nowhere.err;
+  EXPECT_TRUE(contains(nowhere.err, "no/such/directory/scene.gsd")) << nowhere.err;
+  EXPECT_FALSE(contains(nowhere.err, "no overlap")) << nowhere.err;
+
+  // A write that fails (the shell's file-size limit, its signal ignored):
+  // an input/output error, and nothing left behind, for GSD as for text
+  // (GSD left a ".partial" file and exited as a usage error).
+  for (const char* file : {"limited.gsd", "limited.txt"}) {
+    const auto before = std::distance(fs::directory_iterator(path("")), fs::directory_iterator());
+    const Outcome limited =
+        run(std::string("mc --n 125 --packing 0.2 -o ") + file, "ulimit -f 2 && trap '' XFSZ && ");
+    EXPECT_EQ(limited.exit_status, 1) << file << ": " << limited.err;
+    EXPECT_TRUE(contains(limited.err, file)) << limited.err;
+    EXPECT_FALSE(fs::exists(path(file))) << file;
+    const auto after = std::distance(fs::directory_iterator(path("")), fs::directory_iterator());
+    EXPECT_EQ(after, before) << file << ": a temporary file was left";
+  }
+}
+
 }  // namespace

@@ -533,6 +533,73 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   EXPECT_THROW(scene.neighbors(good, -1), std::invalid_argument);
 }
 
+// A trial whose reach to the scene's largest particle wraps around a
+// periodic box has no minimum image to answer by: every query refuses it,
+// single or batched, rather than answer for the wrong image. (overlaps()
+// answered "none" for a needle through a sphere's centre, mu^2 = 0.85 by
+// the reference path, where overlap_count refused it.)
+TEST(MovingScene, ATrialTooLargeForThePeriodicBoxIsRefusedByEveryQuery) {
+  const Box box = Box::periodic_box(4, 4, 4);
+  ParticleStore s;
+  s.add_axes({2.8, 1.4, 0}, {0.1, 0.1, 0.1}, {1, 0, 0, 0});
+  const MovingScene scene(s, box);
+  // A needle through the origin along (2, 1, 0), half-length 3.3, through the
+  // sphere's centre at this image.
+  const double angle = std::atan2(1.0, 2.0);
+  const Particle needle = scene.trial_axes({0, 0, 0}, {3.3, 0.05, 0.05},
+                                           {std::cos(angle / 2), 0, 0, std::sin(angle / 2)});
+  const double r[3] = {2.8, 1.4, 0};
+  const auto at_that_image =
+      pwcontact::contact_function<double>(r, needle.q().data(), s.particle_at(0).q().data());
+  ASSERT_LT(at_that_image.mu2, 1);  // (so "none" would be wrong)
+  EXPECT_THROW(scene.overlaps(needle), std::invalid_argument);
+  EXPECT_THROW(scene.overlap_count(needle), std::invalid_argument);
+  EXPECT_THROW(scene.neighbors(needle, 1.0), std::invalid_argument);
+  std::int64_t first = 7;
+  EXPECT_THROW(scene.overlaps(&needle, nullptr, 1, &first, 1), std::invalid_argument);
+  // A trial that fits is answered: the reach is the trial's and the largest
+  // stored particle's, R_t + R_max <= L / 2.
+  const Particle fits = scene.trial_axes({2.2, 1.4, 0}, {1.8, 0.05, 0.05}, {1, 0, 0, 0});
+  EXPECT_EQ(scene.overlaps(fits), 0);
+  EXPECT_EQ(scene.overlap_count(fits), 1u);
+}
+
+// A scene built empty (or emptied) takes its cells' size from the particles
+// that come: the same answers as the scene built from them. (An empty scene
+// sized its cells for a radius of 1, and then refused every query in a box
+// narrower than 4, naming that radius.)
+TEST(MovingScene, AnEmptySceneFilledByInsertsAnswersAsTheSceneBuiltFromItsParticles) {
+  const Box box = Box::periodic_box(3, 3, 3);
+  std::mt19937_64 engine(5);
+  ParticleStore s;
+  s.add_type({0.1, 0.07, 0.05});
+  for (int n = 0; n < 200; ++n) s.add_particle(random_particle(engine, s, box, 3));
+  ParticleStore types_only;  // (the typed particles need their type)
+  types_only.add_type({0.1, 0.07, 0.05});
+  MovingScene filled(types_only, box);
+  for (int round = 0; round < 2; ++round) {
+    // After every insert, the particles so far answer as in a scene built
+    // from them.
+    ParticleStore so_far = types_only;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      filled.insert(s.particle_at(i));
+      so_far.add_particle(s.particle_at(i));
+      if (i % 10 != 0 && i > 10) continue;
+      const MovingScene built(so_far, box);
+      for (std::size_t j = 0; j <= i; ++j) {
+        const Particle p = s.particle_at(j);
+        const auto expected = built.neighbors(p, 1.0, false, std::int64_t(j));
+        const auto found = filled.neighbors(p, 1.0, false, std::int64_t(j));
+        ASSERT_EQ(found.size(), expected.size()) << "particle " << j << " of " << i + 1;
+        for (std::size_t k = 0; k < found.size(); ++k) EXPECT_EQ(found[k].index, expected[k].index);
+        EXPECT_EQ(filled.overlaps(p, std::int64_t(j)), built.overlaps(p, std::int64_t(j)));
+      }
+    }
+    // Emptied, then filled again.
+    while (filled.size() > 0) filled.remove(filled.size() - 1);
+  }
+}
+
 }  // namespace
 
 namespace {

@@ -97,6 +97,12 @@ class MovingScene {
 
   // Queries, for a trial particle against every stored particle but
   // `exclude` (none, or the index of the particle the trial would replace).
+  // In a periodic box a trial whose reach cutoff * (R_trial + R_max) to the
+  // largest particle the cells are sized for is more than half the box's
+  // width across some axis is refused (std::invalid_argument): the minimum
+  // image would answer for the wrong image. (R_max: the largest bounding
+  // radius held since the grid was last rebuilt; a scene emptied by
+  // remove() forgets it.)
   // overlaps: an overlapping particle (mu < 1), the first in the scene's
   // search order (which depends only on the scene's state), or none.
   std::int64_t overlaps(const Particle& trial, std::int64_t exclude = none) const;

@@ -100,6 +100,15 @@ def _integer_array(values, name: str) -> np.ndarray:
 
 _UINT64_MAX = 2**64 - 1
 
+# As the command line's --threads: more would only exhaust the OpenMP
+# runtime's stacks (a crash, not an error).
+_MAX_THREADS = 1024
+
+
+def _threads(value) -> int:
+    """threads as an int in 0 .. 1024 (0: all); ValueError otherwise."""
+    return _integer(value, "threads", 0, _MAX_THREADS)
+
 
 def is_valid(status: Any) -> Any:
     """True where a status says the answer is valid (ok or ok_fallback)."""
@@ -237,7 +246,7 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     or "high" (the answer refined in double: float32 pairs with
     accuracy="high" need precision="double" or "mixed", ValueError with
     "auto" or "float").
-    threads: OpenMP threads (0: all). isa: "auto", "sse2", "avx2", "avx512", "fallback" (the reference path per pair, on any CPU).
+    threads: OpenMP threads, 0 .. 1024 (0: all). isa: "auto", "sse2", "avx2", "avx512", "fallback" (the reference path per pair, on any CPU).
     lambda_start: optional (N,) array, a lambda to start each pair from (a
     warm start, e.g. the previous step's; NaN for none).
     out: optional dict of arrays to write into, reused across calls:
@@ -267,7 +276,7 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
             raise ValueError("out['lambda'] is given but 'lambda' is not among the outputs: it would "
                              "not be written")
     raw = _core.contact_function(r12, q1, q2, names, precision, _iterations(iterations), accuracy,
-                                 threads, isa, lambda_start, out)
+                                 _threads(threads), isa, lambda_start, out)
     report = raw.pop("report")
     if "mu2" not in names:
         raw.pop("mu2", None)
@@ -281,7 +290,7 @@ def overlap(r12, q1, q2, cutoff: float = 1.0, *, precision: str = "auto",
     positive and finite. In double precision the answer agrees with
     mu**2 < cutoff**2 wherever |mu**2 - cutoff**2| > 1e-9 cutoff**2 (README:
     the overlap bound). Returns an OverlapResult."""
-    raw = _core.overlap(r12, q1, q2, float(cutoff), precision, _iterations(iterations), threads, isa)
+    raw = _core.overlap(r12, q1, q2, float(cutoff), precision, _iterations(iterations), _threads(threads), isa)
     report = raw.pop("report")
     return OverlapResult(raw, report)
 
@@ -592,12 +601,12 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
             raise TypeError(f"comm must be an mpi4py communicator, got {type(comm).__name__}")
         raw = _core.screen_mpi(positions, orientations, semi_axes, q, type_semi_axes, typeid,
                                None if b is None else b._core(), float(cutoff), bool(with_mu2),
-                               int(threads), int(comm.py2f()), tags, bool(gather), kept)
+                               _threads(threads), int(comm.py2f()), tags, bool(gather), kept)
         return DistributedScreenResult(raw)
     if tags is not None or gather:
         raise ValueError("tags and gather are for screen(comm=...) over MPI ranks")
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,
-                       None if b is None else b._core(), float(cutoff), bool(with_mu2), int(threads),
+                       None if b is None else b._core(), float(cutoff), bool(with_mu2), _threads(threads),
                        kept)
     return ScreenResult(raw, positions, b)
 
@@ -659,7 +668,7 @@ class HardParticleMC:
             raise ValueError("HardParticleMC needs a periodic three-dimensional box")
         self._mc = _core.HardParticleMC(np.asarray(positions, dtype=float), orientations, semi_axes, b._core(),
                                         float(packing), float(translation), float(rotation), bool(adapt_steps),
-                                        _integer(seed, "seed", 0, _UINT64_MAX), int(threads))
+                                        _integer(seed, "seed", 0, _UINT64_MAX), _threads(threads))
 
     @classmethod
     def dilute_spheroids(cls, n: int, seed: int = 1, max_aspect: float = 3.0, *, packing: float = 0.5,
@@ -671,7 +680,7 @@ class HardParticleMC:
         as spheroid_scene takes it (ValueError naming the argument)."""
         return cls(None, _core_mc=_core.HardParticleMC.dilute_spheroids(
             _integer(n, "n", 1), _integer(seed, "seed", 0, _UINT64_MAX), _max_aspect(max_aspect),
-            float(packing), float(translation), float(rotation), bool(adapt_steps), int(threads)))
+            float(packing), float(translation), float(rotation), bool(adapt_steps), _threads(threads)))
 
     def sweep(self) -> dict:
         """One move proposed per particle: {proposed, accepted, left_domain
@@ -745,7 +754,7 @@ class SkinNeighborList:
 
     def __init__(self, cutoff: float = 1.5, skin: float = 0.2, *, warm_start: bool = True,
                  threads: int = 0):
-        self._list = _core.SkinNeighborList(float(cutoff), float(skin), bool(warm_start), int(threads))
+        self._list = _core.SkinNeighborList(float(cutoff), float(skin), bool(warm_start), _threads(threads))
         self.cutoff = float(cutoff)
         self.skin = float(skin)
 
@@ -1006,7 +1015,7 @@ class MovingScene:
                 if len(bad):
                     raise IndexError(f"exclude[{bad[0]}]: particle {exclude[bad[0]]} does not exist "
                                      f"({n} particles; -1: none)")
-        return self._scene.overlaps_many(positions, orientations, semi_axes, q, exclude, int(threads))
+        return self._scene.overlaps_many(positions, orientations, semi_axes, q, exclude, _threads(threads))
 
     def move_many(self, indices, positions, orientations=None, semi_axes=None, *, q=None,
                   threads: int = 0) -> None:
@@ -1021,7 +1030,7 @@ class MovingScene:
         the store refuses, each naming the move, and the scene unchanged."""
         indices = _integer_array(indices, "indices")
         positions = self._rows(positions, orientations, q, "move")
-        self._scene.move_many(indices, positions, orientations, semi_axes, q, int(threads))
+        self._scene.move_many(indices, positions, orientations, semi_axes, q, _threads(threads))
 
     def insert(self, position, orientation=None, semi_axes=None, *, q=None, typeid=None) -> int:
         """Stores a particle; returns its index (len(scene) - 1)."""

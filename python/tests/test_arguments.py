@@ -269,3 +269,29 @@ def test_float32_with_high_accuracy_needs_double_precision():
     assert 'float32 pairs with accuracy="high"' in " ".join(pw.contact_function.__doc__.split())
     r = pw.contact_function(*args, accuracy="high", precision="double")
     assert r.mu2.dtype == np.float64 and r.mu2[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("threads", [-1, 1025, 100000, 2.7, "2", True])
+def test_threads_must_be_an_integer_from_0_to_1024(threads):
+    # (100000 threads crashed the interpreter: the OpenMP runtime ran out of
+    # stacks; 2.7 was truncated to 2.)
+    r12 = np.array([[3.0, 0, 0]])
+    q = np.array([[1.0, 0, 0, 1, 0, 1]])
+    positions = np.array([[0.0, 0, 0], [4.0, 0, 0]])
+    calls = [
+        lambda: pw.contact_function(r12, q, q, threads=threads),
+        lambda: pw.overlap(r12, q, q, threads=threads),
+        lambda: pw.screen(positions, None, [1, 1, 1], threads=threads),
+        lambda: two_spheres_scene().overlaps_many(positions, semi_axes=[1, 1, 1], threads=threads),
+        lambda: pw.SkinNeighborList(1.2, 0.1, threads=threads),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError, match="threads"):
+            call()
+
+
+def test_the_core_refuses_more_than_1024_threads_too():
+    r12 = np.array([[3.0, 0, 0]])
+    q = np.array([[1.0, 0, 0, 1, 0, 1]])
+    with pytest.raises(ValueError, match="threads must be in 0 .. 1024"):
+        pw._core.overlap(r12, q, q, 1.0, "auto", "auto", 100000, "auto")

@@ -5,8 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
+#include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -90,8 +91,10 @@ bool ends_with(const std::string& s, const std::string& suffix) {
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-// The scene as one GSD frame (written to a temporary name, renamed when complete).
-void write_gsd(const HardParticleMC& mc, const std::string& path) {
+// The scene as one GSD frame. GsdWriter rewrites the file's header when it
+// finishes, so the frame is made in memory (60 bytes a particle) and then
+// written through `out` as one block.
+void write_gsd(const HardParticleMC& mc, OutputFile& out) {
   const ParticleStore& s = mc.particles();
   const std::size_t n = s.size();
   std::map<std::array<double, 3>, std::uint32_t> type_of_shape;
@@ -115,48 +118,47 @@ void write_gsd(const HardParticleMC& mc, const std::string& path) {
     for (int k = 0; k < 4; ++k) orientation[4 * i + k] = mc.orientation()[i][k];
   }
   const Box& box = mc.box();
-  const std::string temporary = path + ".partial";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (!out) throw CommandError(ExitStatus::io_error, "cannot create " + temporary);
-    GsdWriter writer(out);
-    writer.write("configuration/step", std::vector<std::uint64_t>{mc.sweeps()}, 1);
-    const std::uint8_t three = 3;
-    writer.write_chunk("configuration/dimensions", 1, 1, 1, &three);
-    writer.write("configuration/box",
-                 std::vector<double>{box.length[0], box.length[1], box.length[2], box.tilt[0],
-                                     box.tilt[1], box.tilt[2]},
-                 6);
-    writer.write("particles/N", std::vector<std::uint32_t>{std::uint32_t(n)}, 1);
-    writer.write("particles/types", names);
-    writer.write("particles/typeid", typeid_, n);
-    writer.write("particles/type_shapes", shapes);
-    writer.write("particles/position", position, n);
-    writer.write("particles/orientation", orientation, n);
-    writer.end_frame();
-    writer.finish();
-    out.close();
-    if (!out) throw CommandError(ExitStatus::io_error, "cannot write " + temporary);
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    std::remove(temporary.c_str());
-    throw CommandError(ExitStatus::io_error, "cannot rename " + temporary + " to " + path);
-  }
+  std::ostringstream frame(std::ios::binary);
+  GsdWriter writer(frame);
+  writer.write("configuration/step", std::vector<std::uint64_t>{mc.sweeps()}, 1);
+  const std::uint8_t three = 3;
+  writer.write_chunk("configuration/dimensions", 1, 1, 1, &three);
+  writer.write("configuration/box",
+               std::vector<double>{box.length[0], box.length[1], box.length[2], box.tilt[0],
+                                   box.tilt[1], box.tilt[2]},
+               6);
+  writer.write("particles/N", std::vector<std::uint32_t>{std::uint32_t(n)}, 1);
+  writer.write("particles/types", names);
+  writer.write("particles/typeid", typeid_, n);
+  writer.write("particles/type_shapes", shapes);
+  writer.write("particles/position", position, n);
+  writer.write("particles/orientation", orientation, n);
+  writer.end_frame();
+  writer.finish();
+  out.write(frame.str());
+  out.commit();
 }
 
-void write_text(const HardParticleMC& mc, const std::string& path) {
+// The scene as `pwcontact screen --format axes` lines, after a header of
+// comment lines (made as a string: a fixed buffer cut a long path short, and
+// with it the header's last newline, which put particle 0 into a comment).
+void write_text(const HardParticleMC& mc, OutputFile& out, const std::string& path) {
   const ParticleStore& s = mc.particles();
   const Box& box = mc.box();
-  OutputFile out(path);
-  char line[400];
+  std::string lengths;
+  for (int k = 0; k < 3; ++k) {
+    char number[max_number_chars];
+    lengths += ' ';
+    lengths.append(number, write_number(number, box.length[k]));
+  }
+  char summary[160];
   std::snprintf(
-      line, sizeof line,
-      "# pwcontact mc: %zu spheroids, packing fraction %.6f after %zu sweeps, periodic box "
-      "%.17g %.17g %.17g\n# read back: pwcontact screen --format axes --box %.17g %.17g "
-      "%.17g %s\n# x y z a b c qw qx qy qz\n",
-      s.size(), mc.packing(), mc.sweeps(), box.length[0], box.length[1], box.length[2],
-      box.length[0], box.length[1], box.length[2], path.c_str());
-  out.write(line);
+      summary, sizeof summary,
+      "# pwcontact mc: %zu spheroids, packing fraction %.6f after %zu sweeps, periodic box",
+      s.size(), mc.packing(), mc.sweeps());
+  out.write(std::string(summary) + lengths + "\n# read back: pwcontact screen --format axes --box" +
+            lengths + " " + path + "\n# x y z a b c qw qx qy qz\n");
+  char line[400];  // (ten numbers of at most max_number_chars characters)
   for (std::size_t i = 0; i < s.size(); ++i) {
     const auto& a = mc.semi_axes()[i];
     const auto& q = mc.orientation()[i];
@@ -180,6 +182,10 @@ ExitStatus run_mc(const Arguments& arguments) {
   mc_options.threads = resolve_thread_count(options.threads);
   resolve_instruction_set(Isa::automatic);
   const Stopwatch clock;
+  // The output is opened first: a path that cannot be written is refused
+  // before the run, not after it (the file appears, whole, at the end).
+  std::optional<OutputFile> out;
+  if (!options.output.empty()) out.emplace(options.output);
   HardParticleMC mc =
       HardParticleMC::dilute_spheroids(options.particles, options.seed, 3, mc_options, shape_count);
   const double start_packing = mc.packing();
@@ -219,11 +225,11 @@ ExitStatus run_mc(const Arguments& arguments) {
                "overlap (full screen after every sweep)\n",
                mc.packing(), mc.sweeps(), describe_seconds(clock.seconds()).c_str(),
                proposed ? double(accepted) / double(proposed) : 0.0);
-  if (!options.output.empty()) {
+  if (out) {
     if (ends_with(options.output, ".gsd"))
-      write_gsd(mc, options.output);
+      write_gsd(mc, *out);
     else
-      write_text(mc, options.output);
+      write_text(mc, *out, options.output);
     std::fprintf(stderr, "pwcontact mc: wrote %s\n", options.output.c_str());
   }
   return ExitStatus::success;

@@ -132,8 +132,10 @@ std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arra
 }
 
 int thread_count(int threads) {
-  if (threads < 0)
-    throw py::value_error("threads must be >= 0 (0: all), got " + std::to_string(threads));
+  // (At most the command line's 1024: more only exhausts the OpenMP
+  // runtime's stacks, a crash of the interpreter rather than an error.)
+  if (threads < 0 || threads > 1024)
+    throw py::value_error("threads must be in 0 .. 1024 (0: all), got " + std::to_string(threads));
   return threads > 0 ? threads : omp_get_max_threads();
 }
 

@@ -68,7 +68,7 @@ struct MovingScene::Impl {
   Box box;
   MovingSceneOptions options;
   screen::CellLists lists;     // the geometry, origin and slack; grids[0]: the cells (no members)
-  double grid_radius = 0;      // the bounding radius the cells are sized for
+  double grid_radius = 0;      // the bounding radius the cells are sized for (0: empty scene)
   double side = 0;             // the narrowest cell, in cell space
   std::size_t capacity = 0;    // slots per cell
   std::vector<double> coarse;  // per cell: x[capacity], y[..], z[..], bounding[..]
@@ -179,8 +179,11 @@ struct MovingScene::Impl {
     const std::size_t n = store.size();
     const std::vector<double>& bounding = store.bounding_radius();
     for (std::size_t i = 0; i < n; ++i) radius = std::max(radius, bounding[i]);
-    if (!(radius > 0)) radius = 1;  // an empty scene: any size
+    // An empty scene holds no size: its first particle rebuilds the grid for
+    // its own (a size of 1 here would refuse every query in a box narrower
+    // than 4 max_cutoff, whatever the particles that come).
     grid_radius = radius;
+    if (!(radius > 0)) radius = 1;  // (the cells of an empty scene: any size)
     const double cutoff = options.max_cutoff;
     lists = screen::CellLists();
     lists.box = box;
@@ -297,6 +300,24 @@ struct MovingScene::Impl {
     if (i >= store.size())
       throw std::out_of_range(std::string(who) + ": " + particle_name(i) + " does not exist (" +
                               std::to_string(store.size()) + " particles)");
+  }
+
+  // A trial against the stored particles, at `cutoff`: its reach to the
+  // largest of them must fit twice across a periodic box (the minimum image
+  // would otherwise answer for the wrong image).
+  void check_trial(const Particle& trial, double cutoff, const char* who) const {
+    if (!box.periodic) return;
+    const double reach = cutoff * (trial.bounding_radius() + grid_radius);
+    for (int k = 0; k < 3; ++k)
+      if (box.periodic_along(k) && !(2 * reach <= widths[k]))
+        throw std::invalid_argument(
+            std::string(who) +
+            ": the periodic box is too small for the trial particle: its width " +
+            std::to_string(widths[k]) + " across axis " + std::to_string(k) +
+            " is less than twice the reach cutoff * (R_trial + R_max) = " + std::to_string(reach) +
+            " (cutoff " + std::to_string(cutoff) + ", bounding radius " +
+            std::to_string(trial.bounding_radius()) + ", the scene's largest " +
+            std::to_string(grid_radius) + "; the minimum image convention would miss pairs)");
   }
 
   void check_particle(const Particle& p, const char* who) const {
@@ -633,6 +654,7 @@ std::uint32_t MovingScene::remove(std::size_t i) {
   s.where.pop_back();
   s.outside.pop_back();
   s.store.swap_remove(i);
+  if (s.store.size() == 0) s.rebuild(0);  // (emptied: the next particle sizes the cells)
   ++s.counters.removes;
   return std::uint32_t(last);
 }
@@ -780,6 +802,7 @@ std::int64_t prefilter_trial(const Impl& s, const TrialSide& t, const NearSearch
 std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) const {
   const Impl& s = *impl_;
   thread_local Pending pending(64);
+  s.check_trial(trial, 1.0, "MovingScene::overlaps");
   const TrialSide t(trial);
   const auto search = s.near_search(trial, 1.0);
   for (Cells part : {Cells::own, Cells::others}) {
@@ -811,7 +834,7 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
     throw std::invalid_argument(
         "MovingScene::neighbors: the cutoff must be positive and finite, got " +
         std::to_string(cutoff));
-  s.check_box(std::max(trial.bounding_radius(), s.grid_radius), cutoff, "MovingScene::neighbors");
+  s.check_trial(trial, cutoff, "MovingScene::neighbors");
   const TrialSide t(trial);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Neighbor> out;
@@ -874,6 +897,7 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
 void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, std::size_t count,
                            std::int64_t* first_overlap, int threads) const {
   const Impl& s = *impl_;
+  for (std::size_t t = 0; t < count; ++t) s.check_trial(trials[t], 1.0, "MovingScene::overlaps");
   detail::ParallelErrors errors;
   // Trials in blocks per thread: each block's undecided pairs solved in
   // calls of many pairs, the SIMD lanes across trials.
