@@ -1029,6 +1029,13 @@ class MovingScene:
         IndexError for an index that does not exist, ValueError for a shape
         the store refuses, each naming the move, and the scene unchanged."""
         indices = _integer_array(indices, "indices")
+        # (Checked here as Python integers: a uint64 index above 2**63 would
+        # reach the core as a negative one.)
+        bad = np.flatnonzero((indices < 0) | (indices >= len(self._scene))) if indices.size else []
+        if len(bad):
+            k = int(bad[0])
+            raise IndexError(f"move {k}: particle {int(indices.flat[k])} does not exist "
+                             f"({len(self._scene)} particles)")
         positions = self._rows(positions, orientations, q, "move")
         self._scene.move_many(indices, positions, orientations, semi_axes, q, _threads(threads))
 
@@ -1038,7 +1045,7 @@ class MovingScene:
 
     def _index(self, i) -> int:
         i = _integer(i, "the particle's index")
-        if i < 0:
+        if i < 0 or i >= len(self._scene):
             raise IndexError(f"particle {i} does not exist ({len(self._scene)} particles)")
         return i
 

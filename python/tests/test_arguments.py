@@ -295,3 +295,17 @@ def test_the_core_refuses_more_than_1024_threads_too():
     q = np.array([[1.0, 0, 0, 1, 0, 1]])
     with pytest.raises(ValueError, match="threads must be in 0 .. 1024"):
         pw._core.overlap(r12, q, q, 1.0, "auto", "auto", 100000, "auto")
+
+
+def test_indices_beyond_int64_are_index_errors_naming_them():
+    # (remove(2**64) was pybind11's TypeError with a signature; a uint64
+    # index of 2**64 - 1 in move_many was named "particle -1".)
+    scene = two_spheres_scene()
+    with pytest.raises(IndexError, match=f"particle {2**64} does not exist"):
+        scene.remove(2**64)
+    with pytest.raises(IndexError, match=f"particle {2**64} does not exist"):
+        scene.move(2**64, [0.0, 0, 0], semi_axes=[1, 1, 1])
+    huge = np.array([1, 2**64 - 1], dtype=np.uint64)
+    with pytest.raises(IndexError, match=f"move 1: particle {2**64 - 1} does not exist"):
+        scene.move_many(huge, [[0.0, 0, 0], [4.0, 0, 0]], semi_axes=[1, 1, 1])
+    assert len(scene) == 2

@@ -163,7 +163,10 @@ HardParticleMC HardParticleMC::dilute_spheroids(std::size_t n, std::uint64_t see
     for (double& x : q) x /= std::sqrt(norm2);
     orientation[i] = q;
   }
-  std::size_t side = 1;
+  // At least two sites along each axis: a box one site wide is narrower than
+  // twice a particle's reach, which no scene takes (one particle then gets
+  // compress_to_packing's message on too few particles, not the scene's).
+  std::size_t side = 2;
   while (side * side * side < n) ++side;
   const double spacing = 1.02 * 2 * largest, length = spacing * double(side);
   for (std::size_t i = 0; i < n; ++i)
