@@ -90,6 +90,44 @@ try:
 except ValueError:
     pass
 
+# An error in one rank's input only (the last rank's) is raised on every
+# rank: its own exception there, a ValueError naming it on the others. (The
+# other ranks waited for ever in the first collective call.) Each case is
+# followed by a good screen: the ranks' collective calls stay in step.
+bad = size - 1
+box2d = pw.Box(20, 20, is2D=True)
+cases = [
+    ("negative semi-axes", ValueError, "semi-axes must be positive",
+     lambda mine: pw.screen(np.zeros((2, 3)) + [[1, 1, 1], [5, 5, 5]], None,
+                            [-1.0, 0.4, 0.3] if mine else [1.0, 0.4, 0.3], box=pw.Box.cube(20),
+                            comm=comm)),
+    ("tags of the wrong length", ValueError, "tags must have shape",
+     lambda mine: pw.screen(np.zeros((2, 3)) + [[1, 1, 1], [5, 5, 5]], None, [1.0, 0.4, 0.3],
+                            tags=[2 * rank] if mine else [2 * rank, 2 * rank + 1],
+                            box=pw.Box.cube(20), comm=comm)),
+    ("a particle off the plane of a 2D box", ValueError, "z = 3",
+     lambda mine: pw.screen(np.array([[1.0, 1, 3 if mine else 0]]), None, [1.0, 0.5, 0.2],
+                            box=box2d, comm=comm)),
+    ("an unknown keyword", TypeError, "'bx'",
+     lambda mine: pw.screen(np.array([[1.0, 1, 1]]), None, [1.0, 0.5, 0.2], comm=comm,
+                            **({"bx": 1} if mine else {}))),
+]
+for name, kind, text, call in cases:
+    try:
+        call(rank == bad)
+        check(False, f"{name} on rank {bad}: no error on rank {rank}")
+    except Exception as e:  # noqa: BLE001 (the kind is checked)
+        if rank == bad:
+            check(type(e) is kind and text in str(e),
+                  f"{name}: rank {rank} raised {type(e).__name__}: {e}")
+        else:
+            check(type(e) is ValueError and f"rank {bad}" in str(e) and text in str(e),
+                  f"{name}: rank {rank} raised {type(e).__name__}: {e}")
+    after = pw.screen(np.array([[1.0 + rank, 1, 1]]), None, [1.0, 0.4, 0.3], box=pw.Box.cube(20),
+                      comm=comm, gather=True)
+    if rank == 0:
+        check(len(after.pairs) == max(0, size - 1), f"after {name}: {len(after.pairs)} pairs")
+
 for what in failures:
     print(f"rank {rank}: FAILED: {what}", flush=True)
 failed = comm.allreduce(len(failures), op=MPI.SUM)

@@ -588,21 +588,44 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     every so many steps), whose memory each screen reuses (with comm: each
     rank's local screen, a workspace per rank); the same pairs.
     """
-    positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
-        "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
-    if workspace is not None and not isinstance(workspace, ScreenWorkspace):
-        raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
-    kept = None if workspace is None else workspace._workspace
     if comm is not None:
         if not _core.with_mpi:
             raise RuntimeError("screen(comm=...): this pwcontact was built without MPI "
                                "(PWCONTACT_BUILD_MPI, with libopenmpi-dev installed)")
         if not hasattr(comm, "py2f"):
             raise TypeError(f"comm must be an mpi4py communicator, got {type(comm).__name__}")
-        raw = _core.screen_mpi(positions, orientations, semi_axes, q, type_semi_axes, typeid,
-                               None if b is None else b._core(), float(cutoff), bool(with_mu2),
-                               _threads(threads), int(comm.py2f()), tags, bool(gather), kept)
+        # This rank's arguments are checked here and in the core before any
+        # collective call; an error is raised on every rank (this rank's own
+        # exception here, a ValueError naming the rank elsewhere), never on
+        # one rank alone while the others wait.
+        local_error = None
+        try:
+            positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
+                "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored,
+                q)
+            if workspace is not None and not isinstance(workspace, ScreenWorkspace):
+                raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
+            arguments = (positions, orientations, semi_axes, q, type_semi_axes, typeid,
+                         None if b is None else b._core(), float(cutoff), bool(with_mu2),
+                         _threads(threads), int(comm.py2f()), tags, bool(gather),
+                         None if workspace is None else workspace._workspace)
+        except (ValueError, TypeError, IndexError) as e:
+            local_error = e
+            arguments = (None, None, None, None, None, None, None, 1.0, False, 1,
+                         int(comm.py2f()), None, False, None)
+        try:
+            raw = _core.screen_mpi(*arguments, "" if local_error is None else
+                                   f"{type(local_error).__name__}: {local_error}")
+        except ValueError:
+            if local_error is not None:
+                raise local_error from None
+            raise
         return DistributedScreenResult(raw)
+    positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
+        "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
+    if workspace is not None and not isinstance(workspace, ScreenWorkspace):
+        raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
+    kept = None if workspace is None else workspace._workspace
     if tags is not None or gather:
         raise ValueError("tags and gather are for screen(comm=...) over MPI ranks")
     raw = _core.screen(positions, orientations, semi_axes, q, type_semi_axes, typeid,

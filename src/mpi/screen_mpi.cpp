@@ -36,6 +36,7 @@
 #include <string>
 #include <utility>
 
+#include "mpi/agree.hpp"
 #include "pwcontact/mpi.hpp"
 #include "screen/cell_lists.hpp"
 
@@ -78,14 +79,13 @@ struct ParticleRecord {
 }  // namespace pwcontact::detail
 
 namespace pwcontact::mpi {
-namespace {
 
-using detail::ParticleRecord;
+namespace detail {
 
 // An error found by some ranks, thrown on every rank (the message of the
 // lowest of them): a rank that threw alone would leave the others waiting in
 // the next collective call.
-void throw_if_any(MPI_Comm comm, const std::string& error, const char* caller = "screen_pairs") {
+void throw_if_any(MPI_Comm comm, const std::string& error, const char* caller) {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   int mine = error.empty() ? INT_MAX : rank, first = INT_MAX;
@@ -99,6 +99,14 @@ void throw_if_any(MPI_Comm comm, const std::string& error, const char* caller = 
   throw std::invalid_argument(std::string(caller) + " (MPI, rank " + std::to_string(first) +
                               "): " + message);
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::throw_if_any;
+
+using pwcontact::detail::ParticleRecord;
 
 // Frees the communicators and the datatype made here, however we leave.
 struct Handles {

@@ -32,6 +32,7 @@
 #include "parallel_errors.hpp"
 #include "pwcontact/pwcontact.hpp"
 #if PWCONTACT_WITH_MPI
+#include "mpi/agree.hpp"
 #include "pwcontact/mpi.hpp"
 #endif
 
@@ -581,12 +582,17 @@ py::dict screen(const py::object& positions, const py::object& orientations,
 // handle, as mpi4py's Comm.py2f() gives it): this rank's particles, their
 // global ids (tags; None: numbered by rank, rank 0's first), the pairs of
 // this rank under the owner rule, or every rank's on rank 0 with gather.
+// `local_error`: what the package's own checks of this rank's arguments
+// found (empty: nothing). Every rank's input is checked before the first
+// collective call, and an error on any rank is raised on every rank: this
+// rank's own exception where it failed, a ValueError naming the rank on the
+// others (a rank that raised alone left the others waiting for ever).
 py::dict screen_mpi(const py::object& positions, const py::object& orientations,
                     const py::object& semi_axes, const py::object& q,
                     const py::object& type_semi_axes, const py::object& type_id,
                     const py::object& box, double cutoff, bool with_mu2, int threads,
                     std::int64_t comm_handle, const py::object& tags_in, bool gather,
-                    const py::object& workspace) {
+                    const py::object& workspace, const std::string& local_error) {
   pwcontact::ScreenWorkspace* kept =
       workspace.is_none() ? nullptr : &workspace.cast<pwcontact::ScreenWorkspace&>();
   int initialized = 0, finalized = 0;
@@ -597,30 +603,50 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
         "comm: MPI is not initialised (import mpi4py.MPI first) or already "
         "finalised");
   const MPI_Comm comm = MPI_Comm_f2c(MPI_Fint(comm_handle));
-  const int used = thread_count(threads);
-  const pwcontact::ParticleStore store =
-      make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+  std::string error = local_error;
+  std::exception_ptr own;
+  int used = 1;
+  pwcontact::ParticleStore store;
+  std::vector<std::uint64_t> tags;
+  pwcontact::Box b;
+  if (error.empty()) {
+    try {
+      used = thread_count(threads);
+      store = make_store(positions, orientations, semi_axes, q, type_semi_axes, type_id, used);
+      if (!tags_in.is_none()) {
+        auto given = py::array_t<std::uint64_t, py::array::forcecast>::ensure(tags_in);
+        if (!given || given.ndim() != 1 || std::size_t(given.shape(0)) != store.size())
+          throw py::value_error("tags must have shape (" + std::to_string(store.size()) + ",)");
+        const auto view = given.unchecked<1>();
+        tags.resize(store.size());
+        for (std::size_t k = 0; k < store.size(); ++k) tags[k] = view(py::ssize_t(k));
+      }
+      b = make_box(box);
+    } catch (const std::exception& e) {
+      error = e.what();
+      own = std::current_exception();
+    }
+  }
+  try {
+    pwcontact::mpi::detail::throw_if_any(comm, error, "screen");
+  } catch (const std::invalid_argument&) {
+    if (own) std::rethrow_exception(own);
+    throw;
+  }
   const std::size_t n = store.size();
-  std::vector<std::uint64_t> tags(n);
   if (tags_in.is_none()) {
+    tags.resize(n);
     unsigned long long count = n, first = 0;
     MPI_Exscan(&count, &first, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
     int rank = 0;
     MPI_Comm_rank(comm, &rank);
     if (rank == 0) first = 0;  // (MPI_Exscan leaves rank 0's result undefined)
     for (std::size_t k = 0; k < n; ++k) tags[k] = first + k;
-  } else {
-    auto given = py::array_t<std::uint64_t, py::array::forcecast>::ensure(tags_in);
-    if (!given || given.ndim() != 1 || std::size_t(given.shape(0)) != n)
-      throw py::value_error("tags must have shape (" + std::to_string(n) + ",)");
-    const auto view = given.unchecked<1>();
-    for (std::size_t k = 0; k < n; ++k) tags[k] = view(py::ssize_t(k));
   }
   pwcontact::ScreenOptions options;
   options.cutoff = cutoff;
   options.with_mu2 = with_mu2;
   options.threads = used;
-  const pwcontact::Box b = make_box(box);
   pwcontact::mpi::TaggedPairs pairs;
   pwcontact::mpi::DistributedReport report;
   {
@@ -1071,7 +1097,8 @@ PYBIND11_MODULE(_pwcontact, m) {
   m.def("screen_mpi", &screen_mpi, py::arg("positions"), py::arg("orientations"),
         py::arg("semi_axes"), py::arg("q"), py::arg("type_semi_axes"), py::arg("typeid"),
         py::arg("box"), py::arg("cutoff"), py::arg("with_mu2"), py::arg("threads"), py::arg("comm"),
-        py::arg("tags"), py::arg("gather"), py::arg("workspace"));
+        py::arg("tags"), py::arg("gather"), py::arg("workspace"),
+        py::arg("local_error") = std::string());
 #else
   m.attr("with_mpi") = false;
 #endif
