@@ -1576,3 +1576,72 @@ TEST(ScreenRadixSort, SortsPairKeysStablyAsAComparisonSortDoes) {
   EXPECT_EQ(pwcontact::screen::index_bits(1000000), 20);
   EXPECT_EQ(pwcontact::screen::index_bits(std::size_t(1) << 20), 20);
 }
+
+namespace {
+
+// A triclinic box's centres far from it are wrapped by whole lattice vectors
+// in double-double arithmetic: the pairs and mu^2 are those of the scene at
+// the box. (Through the rounded fractional coordinates, a centre K box
+// lengths away lost eps K box lengths, and beyond 2^52 its whole residue:
+// it was placed at the box's origin.)
+TEST(Screen, TriclinicCentresFarFromTheBoxGiveThePairsAndMu2OfTheSceneAtTheBox) {
+  // Lattice vectors of small integers (h = [[8, 3, -2], [0, 8, 1], [0, 0, 8]]),
+  // centres on a grid of 2^-20: every shifted centre below is exact.
+  const Box box = Box::triclinic(8, 8, 8, 0.375, -0.25, 0.125);
+  const double h[3][3] = {{8, 3, -2}, {0, 8, 1}, {0, 0, 8}};
+  std::mt19937_64 engine(11);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore at_box, shifted;
+  for (int n = 0; n < 600; ++n) {
+    std::array<double, 3> c, axes;
+    for (double& x : c) x = std::ldexp(std::floor(std::ldexp(8 * unit(engine), 20)), -20);
+    for (double& a : axes) a = 0.15 + 0.35 * unit(engine);
+    std::normal_distribution<double> normal(0, 1);
+    const std::array<double, 4> q = {normal(engine), normal(engine), normal(engine),
+                                     normal(engine)};
+    at_box.add_axes(c, axes, q);
+    // Whole lattice vectors, up to 2^28 of each: |x| < 2^33, exact with
+    // the centre's 20 bits of fraction.
+    std::array<double, 3> far = c;
+    for (int k = 0; k < 3; ++k) {
+      const double m = std::floor((2 * unit(engine) - 1) * std::ldexp(1, 28));
+      for (int r = 0; r < 3; ++r) far[r] += m * h[r][k];
+    }
+    shifted.add_axes(far, axes, q);
+  }
+  ScreenOptions options;
+  options.cutoff = 1.2;
+  options.with_mu2 = true;
+  ScreenedPairs near, far;
+  pwcontact::screen_pairs(at_box, box, options, near);
+  pwcontact::screen_pairs(shifted, box, options, far);
+  ASSERT_GT(near.size(), 100u);
+  ASSERT_EQ(far.size(), near.size());
+  double worst = 0;
+  for (std::size_t k = 0; k < near.size(); ++k) {
+    ASSERT_EQ(far.i[k], near.i[k]);
+    ASSERT_EQ(far.j[k], near.j[k]);
+    worst = std::max(worst, std::abs(far.mu2[k] - near.mu2[k]) / near.mu2[k]);
+  }
+  // Both wraps within a few eps of the box's lengths: mu^2 to ~1e-14 (it
+  // was ~1e-6 at these distances).
+  EXPECT_LT(worst, 1e-12);
+  std::printf("[ measured ] %zu pairs, centres up to 2^28 box lengths away: mu^2 within %.2g\n",
+              near.size(), worst);
+
+  // Beyond 2^52 box lengths: B lies 10 * 2^53 + 10 from A along the first
+  // lattice vector, which a tilt of the third leaves along x; B coincides
+  // with A's image, C is 5.5 from both.
+  const Box tilted = Box::triclinic(10, 10, 10, 0, 0, 1e-3);
+  ParticleStore three;
+  three.add_axes({6, 5, 5}, {0.5, 0.4, 0.3}, {1, 0, 0, 0});
+  three.add_axes({10 * std::ldexp(1, 53) + 16, 5, 5}, {0.5, 0.4, 0.3}, {1, 0, 0, 0});
+  three.add_axes({0.5, 5, 5}, {0.5, 0.4, 0.3}, {1, 0, 0, 0});
+  ScreenedPairs pairs;
+  pwcontact::screen_pairs(three, tilted, {}, pairs);
+  ASSERT_EQ(pairs.size(), 1u);
+  EXPECT_EQ(pairs.i[0], 0u);
+  EXPECT_EQ(pairs.j[0], 1u);
+}
+
+}  // namespace

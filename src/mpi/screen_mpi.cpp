@@ -133,9 +133,18 @@ struct Decomposition {
     std::array<double, 3> t{};
     double s[3] = {0, 0, 0};
     geometry.fractional(x, s);
+    // Far from the box, from the wrapped position (as the cells take it:
+    // s itself is then eps |s| off, beyond 2^52 box lengths wholly).
+    const bool far = !screen::BoxGeometry::near_box(s);
+    if (far) {
+      double w[3];
+      geometry.wrap(x, w);
+      geometry.fractional(w, s);
+    }
     for (int k = 0; k < 3; ++k)
       if (geometry.periodic[k])
-        t[std::size_t(k)] = screen::BoxGeometry::fraction_of(s[k]);
+        t[std::size_t(k)] =
+            far ? std::clamp(s[k], 0.0, 1.0) : screen::BoxGeometry::fraction_of(s[k]);
       else if (extent[std::size_t(k)] > 0)
         t[std::size_t(k)] =
             std::clamp((x[k] - low[std::size_t(k)]) / extent[std::size_t(k)], 0.0, 1.0);

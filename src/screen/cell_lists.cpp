@@ -56,6 +56,46 @@ BoxGeometry::BoxGeometry(const Box& box) {
   for (int k = 0; k < 3; ++k) inverse_diagonal[k] = periodic[k] ? 1 / h[k][k] : 0;
 }
 
+namespace {
+
+// (hi, lo) -= n h, as a double-double: n h = p + pe exactly (fma), hi - p =
+// t + te exactly (two-sum), then renormalised. (std::fma: exact whatever
+// the instruction set; a library call on the baseline, taken only for
+// centres far from the box.)
+void subtract_product(double& hi, double& lo, double n, double h) {
+  const double p = n * h;
+  const double pe = std::fma(n, h, -p);
+  const double t = hi - p;
+  const double back = t - hi;
+  const double te = (hi - (t - back)) + (-p - back);
+  const double low = lo + te - pe;
+  hi = t + low;
+  lo = low - (hi - t);
+}
+
+}  // namespace
+
+void BoxGeometry::wrap_far(const double x[3], double w[3]) const {
+  double hi[3] = {x[0], x[1], x[2]}, lo[3] = {0, 0, 0};
+  for (int k = 2; k >= 0; --k) {
+    if (!periodic[k]) continue;
+    // Subtracting lattice vector k changes s_k by one and no other s_j
+    // (h is upper triangular); rows k .. 2 are final once axis k is done.
+    for (int round = 0; round < 64; ++round) {
+      double now[3], s[3];
+      for (int r = 0; r < 3; ++r) now[r] = hi[r] + lo[r];
+      fractional(now, s);
+      const double n = std::floor(s[k]);
+      // In [0, 1], or within rounding of a face (wrapped positions are
+      // clamped into the cells): done.
+      if (n == 0 || (n == 1 && s[k] - 1 <= 1e-12) || (n == -1 && s[k] >= -1e-12)) break;
+      if (!std::isfinite(n)) break;  // (s beyond double's range: no wrap can help)
+      for (int r = 0; r <= k; ++r) subtract_product(hi[r], lo[r], n, h[r][k]);
+    }
+  }
+  for (int r = 0; r < 3; ++r) w[r] = periodic[r] ? hi[r] + lo[r] : x[r];
+}
+
 double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
                     const std::array<double, 3>& high) {
   double scale = reach;

@@ -14,6 +14,7 @@
 // most pairs before anything else about them is read.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -122,9 +123,26 @@ struct BoxGeometry {
     const double whole = double(static_cast<std::int64_t>(s));  // toward zero
     return s - (whole > s ? whole - 1 : whole);
   }
+  // Whether fractional coordinates s lie within a few box lengths of the
+  // box, where wrapping through them is accurate to a few eps of the box's
+  // lengths; beyond, the rounding of s itself (eps |s|) would move the
+  // wrapped position by eps |s| box lengths, and beyond 2^52 by the whole
+  // residue (wrap_far then).
+  static bool near_box(const double s[3]) {
+    constexpr double near = 4;
+    return std::abs(s[0]) <= near && std::abs(s[1]) <= near && std::abs(s[2]) <= near;
+  }
+  // A triclinic box's wrap of a centre far from it: x less whole lattice
+  // vectors, subtracted in double-double arithmetic (one lattice vector at
+  // a time, from the last, until the centre's fractional coordinate along
+  // it lies in [0, 1] as fractional() computes it from the result): within
+  // a few eps of the box's lengths up to ~1/eps box lengths away, and
+  // eps^2 |x| beyond, where wrapping through s lost eps |x|.
+  void wrap_far(const double x[3], double w[3]) const;
   // x wrapped into the box along the periodic axes. Orthorhombic: the exact
   // residue per axis (wrap_into_box); triclinic: through the fractional
-  // coordinates, to a few eps of the lengths.
+  // coordinates, to a few eps of the lengths (wrap_far beyond a few box
+  // lengths).
   void wrap(const double x[3], double w[3]) const {
     if (!triclinic) {
       for (int k = 0; k < 3; ++k) w[k] = periodic[k] ? wrap_into_box(x[k], h[k][k]) : x[k];
@@ -132,6 +150,10 @@ struct BoxGeometry {
     }
     double s[3];
     fractional(x, s);
+    if (!near_box(s)) {
+      wrap_far(x, w);
+      return;
+    }
     for (int k = 0; k < 3; ++k)
       if (periodic[k]) s[k] = fraction_of(s[k]);  // (s is rounded already: no fmod needed)
     for (int r = 0; r < 3; ++r) {
@@ -204,6 +226,17 @@ struct CellLists {
     if (geometry.triclinic) {
       double s[3];
       geometry.fractional(x, s);
+      if (!BoxGeometry::near_box(s)) {
+        // (From the position wrap() gives, whose s lies in [0, 1] to
+        // rounding: clamped, a cell on the side of the box it lies on.)
+        double w[3];
+        geometry.wrap_far(x, w);
+        geometry.fractional(w, s);
+        for (int k = 0; k < 3; ++k)
+          u[k] = geometry.periodic[k] ? std::clamp(s[k], 0.0, 1.0) * geometry.width[k]
+                                      : x[k] - origin[k];
+        return;
+      }
       for (int k = 0; k < 3; ++k)
         u[k] = geometry.periodic[k] ? BoxGeometry::fraction_of(s[k]) * geometry.width[k]
                                     : x[k] - origin[k];
