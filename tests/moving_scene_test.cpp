@@ -564,6 +564,54 @@ TEST(MovingScene, ATrialTooLargeForThePeriodicBoxIsRefusedByEveryQuery) {
   EXPECT_EQ(scene.overlap_count(fits), 1u);
 }
 
+// A clustered scene (a dense droplet of small spheres in a large box whose
+// cells one large sphere sizes) holds memory in proportion to its particles:
+// the droplet's cells get rooms of their own. (Every cell had the room of
+// the fullest: 496 kB a particle at 1,729 particles, growing as N.)
+TEST(MovingScene, AClusteredSceneHoldsMemoryInProportionToItsParticles) {
+  for (int side : {8, 16}) {
+    ParticleStore s;
+    s.add_axes({30, 30, 30}, {1, 1, 1}, {1, 0, 0, 0});
+    for (int a = 0; a < side; ++a)
+      for (int b = 0; b < side; ++b)
+        for (int c = 0; c < side; ++c)  // radius 0.05, 0.11 apart: none overlap
+          s.add_axes({5 + 0.11 * a, 5 + 0.11 * b, 5 + 0.11 * c}, {0.05, 0.05, 0.05}, {1, 0, 0, 0});
+    MovingScene scene(s, Box::periodic_box(60, 60, 60));
+    const double per_particle = double(scene.bytes()) / double(scene.size());
+    std::printf("[ measured ] %zu particles, %d^3 cells: %.1f kB a particle\n", scene.size(),
+                scene.cells()[0], per_particle / 1024);
+    // ~5 kB: 16 + 24 slots of ~100 bytes per cell, at two cells a particle.
+    EXPECT_LT(per_particle, 16 * 1024.0);
+    // The droplet doubles by inserts (a copy moved by half a spacing): its
+    // cells overflow and the grid is rebuilt; still in proportion, and the
+    // answers those of a fresh scene.
+    const std::size_t rebuilds = scene.counters().rebuilds;
+    for (std::size_t i = 1; i < s.size(); ++i) {
+      const auto c = s.particle_at(i).centre();
+      scene.insert(scene.trial_axes({c[0] + 0.055, c[1] + 0.055, c[2] + 0.055}, {0.05, 0.05, 0.05},
+                                    {1, 0, 0, 0}));
+    }
+    EXPECT_GT(scene.counters().rebuilds, rebuilds);
+    EXPECT_LT(double(scene.bytes()) / double(scene.size()), 16 * 1024.0);
+    const MovingScene fresh(scene.particles(), Box::periodic_box(60, 60, 60));
+    const Particle probe = scene.trial_axes({5 + 0.11 * side / 2, 5 + 0.11 * side / 2, 5.3},
+                                            {0.3, 0.3, 0.3}, {1, 0, 0, 0});
+    EXPECT_EQ(scene.overlap_count(probe), fresh.overlap_count(probe));
+    EXPECT_GT(scene.overlap_count(probe), 10u);
+    // Every particle's overlaps (cells of rooms of their own) are those a
+    // screen finds.
+    pwcontact::ScreenedPairs pairs;
+    pwcontact::screen_pairs(scene.particles(), Box::periodic_box(60, 60, 60), {}, pairs);
+    const auto counts = pwcontact::pair_counts(pairs, scene.size());
+    ASSERT_GT(pairs.size(), scene.size());
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      const Particle p = scene.particles().particle_at(i);
+      ASSERT_EQ(scene.overlap_count(p, std::int64_t(i)), counts[i]) << "particle " << i;
+      EXPECT_EQ(scene.overlaps(p, std::int64_t(i)) != MovingScene::none, counts[i] > 0);
+    }
+  }
+}
+
 // A scene built empty (or emptied) takes its cells' size from the particles
 // that come: the same answers as the scene built from them. (An empty scene
 // sized its cells for a radius of 1, and then refused every query in a box

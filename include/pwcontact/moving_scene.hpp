@@ -10,7 +10,10 @@
 // of a particle lies in the 3 x 3 x 3 cells about its own. Each cell keeps
 // its members in fixed slots, so that insert, remove and move are O(1): a
 // member's entry is rewritten in place, or moved to another cell's free
-// slot. The grid is rebuilt (O(N)) only when a cell overflows its slots,
+// slot. A cell has room for half as many again as it held at the last
+// rebuild, and at least a common room (that of the fullest cell, up to a
+// few times the mean occupancy), so that memory is O(N + cells) however
+// the particles cluster. The grid is rebuilt (O(N)) only when a cell overflows its slots,
 // when a particle larger than the cells' reach arrives, or, in an open box,
 // when many particles have left the region the grid covers (the grid's
 // outer cells take them meanwhile: nothing is lost, only slower).
@@ -74,6 +77,9 @@ class MovingScene {
   const ParticleStore& particles() const noexcept;
   const Box& box() const noexcept;
   const MovingSceneCounters& counters() const noexcept;
+  // Memory held by the cells (their slots and per-particle places; the
+  // particles' own store not counted), in bytes.
+  std::size_t bytes() const noexcept;
 
   // Trial particles (not stored), checked as the store checks particles
   // (std::invalid_argument naming "trial particle"): a new form (radii from

@@ -61,6 +61,16 @@ struct TrialSide {
 // both (own first).
 enum class Cells { own, others, all };
 
+// A cell's slots: `room` of them (a multiple of the coarse kernel's
+// padding) from slot `start` of the scene's arrays. (When every cell has
+// the same room, as in a uniform scene, a query computes a cell's start
+// from its index instead: loaded, it delayed the loads of the cell's members
+// that depend on it, and single queries at 0.3 took 5-9 % longer.)
+struct CellSlots {
+  std::uint64_t start;
+  std::uint32_t room, unused;
+};
+
 }  // namespace
 
 struct MovingScene::Impl {
@@ -70,13 +80,16 @@ struct MovingScene::Impl {
   screen::CellLists lists;     // the geometry, origin and slack; grids[0]: the cells (no members)
   double grid_radius = 0;      // the bounding radius the cells are sized for (0: empty scene)
   double side = 0;             // the narrowest cell, in cell space
-  std::size_t capacity = 0;    // slots per cell
-  std::vector<double> coarse;  // per cell: x[capacity], y[..], z[..], bounding[..]
+  std::size_t base_room = 0;   // the slots of a cell that holds few particles
+  std::vector<double> coarse;  // per cell, from 4 start: x[room], y[..], z[..], bounding[..]
   kernels::BoundingKernel bounding_spheres_meet = nullptr;  // of the scene's instruction set
-  std::vector<Detail> details;                              // cells * capacity
-  std::vector<std::uint32_t> members;                       // cells * capacity: particle indices
-  std::vector<std::uint32_t> count;                         // per cell
-  std::vector<std::uint64_t> where;                         // per particle: cell * capacity + slot
+  std::vector<Detail> details;                              // per slot
+  std::vector<std::uint32_t> members;                       // per slot: particle indices
+  std::vector<CellSlots> slots;                             // per cell
+  std::vector<std::uint32_t> count;                         // per cell: slots in use
+  bool uniform_rooms = true;                                // every cell's room base_room
+  std::vector<std::uint64_t> where;                         // per particle: its slot
+  std::vector<std::uint32_t> home;                          // per particle: its cell
   std::vector<std::uint8_t> outside;  // per particle (open axes): beyond the grid's region
   std::size_t outside_count = 0;
   MovingSceneCounters counters;
@@ -124,16 +137,20 @@ struct MovingScene::Impl {
             "; the minimum image convention would miss pairs)");
   }
 
-  void write_slot(std::uint64_t at, std::size_t i) {
-    const std::size_t cell = std::size_t(at / capacity), slot = std::size_t(at % capacity);
-    double* block = coarse.data() + cell * capacity * 4;
+  // Particle i into slot `slot` of `cell`.
+  void write_slot(std::size_t cell, std::size_t slot, std::size_t i) {
+    const CellSlots& c = slots[cell];
+    const std::uint64_t at = c.start + slot;
+    const std::size_t room = c.room;
+    double* block = coarse.data() + c.start * 4;
     const double x[3] = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
     double wrapped[3];
     lists.geometry.wrap(x, wrapped);
     block[slot] = wrapped[0];
-    block[capacity + slot] = wrapped[1];
-    block[2 * capacity + slot] = wrapped[2];
-    block[3 * capacity + slot] = store.bounding_radius()[i];
+    block[room + slot] = wrapped[1];
+    block[2 * room + slot] = wrapped[2];
+    block[3 * room + slot] = store.bounding_radius()[i];
+    home[i] = std::uint32_t(cell);
     Detail& d = details[at];
     for (int k = 0; k < 6; ++k) d.q[k] = store.q(k)[i];
     d.inscribed = store.inscribed_radius()[i];
@@ -153,25 +170,27 @@ struct MovingScene::Impl {
 
   // Takes particle i's slot out of its cell (the cell's last slot fills it).
   void vacate(std::size_t i) {
+    CellSlots& c = slots[home[i]];
     const std::uint64_t at = where[i];
-    const std::size_t cell = std::size_t(at / capacity);
-    const std::uint64_t last = cell * capacity + (count[cell] - 1);
+    std::uint32_t& in_use = count[home[i]];
+    const std::uint64_t last = c.start + (in_use - 1);
     if (at != last) {
-      double* block = coarse.data() + cell * capacity * 4;
-      const std::size_t a = std::size_t(at % capacity), b = std::size_t(last % capacity);
-      for (int d = 0; d < 4; ++d) block[d * capacity + a] = block[d * capacity + b];
+      double* block = coarse.data() + c.start * 4;
+      const std::size_t a = std::size_t(at - c.start), b = std::size_t(last - c.start);
+      for (int d = 0; d < 4; ++d) block[d * c.room + a] = block[d * c.room + b];
       details[at] = details[last];
       members[at] = members[last];
-      where[members[at]] = at;
+      where[members[at]] = at;  // (its home is this cell already)
     }
-    --count[cell];
+    --in_use;
   }
 
   // Puts particle i into `cell`, which has a free slot.
   void occupy(std::size_t i, std::size_t cell) {
-    write_slot(cell * capacity + count[cell], i);
+    write_slot(cell, count[cell], i);
     ++count[cell];
   }
+  bool full(std::size_t cell) const { return count[cell] == slots[cell].room; }
 
   // The grid sized for every particle (and for at least `radius`), every
   // particle placed.
@@ -251,18 +270,37 @@ struct MovingScene::Impl {
     }
     const std::uint32_t fullest =
         cell_total ? *std::max_element(occupancy.begin(), occupancy.end()) : 0;
-    // Room for the cells to fill up by half before the next rebuild.
-    capacity = std::max<std::size_t>({8, fullest + fullest / 2 + 2, capacity});
-    capacity = (capacity + kernels::coarse_padding - 1) / kernels::coarse_padding *
-               kernels::coarse_padding;
+    // Room for the cells to fill up by half before the next rebuild: every
+    // cell as much as the fullest one needs, as long as that is a few times
+    // the mean (a uniform scene: one layout, no cell fuller than a few
+    // times the mean); beyond, in a clustered scene, the cells of the
+    // cluster get rooms of their own (a uniform room for the fullest made
+    // memory grow as cells x fullest, ~N^2).
+    auto padded = [](std::size_t r) {
+      return (r + kernels::coarse_padding - 1) / kernels::coarse_padding * kernels::coarse_padding;
+    };
+    const double mean = cell_total ? double(n) / double(cell_total) : 0;
+    const std::size_t most = padded(std::size_t(4 * mean) + 16);
+    base_room =
+        padded(std::min(std::max<std::size_t>({8, fullest + fullest / 2 + 2, base_room}), most));
     // In huge pages where the kernel offers them, as the screen's arrays: a
     // query reads a few cache lines of each of up to ~15 cells, each cell's
     // slots kilobytes apart (measured 3 % faster at 0.3).
+    screen::assign_in_huge_pages(slots, cell_total, CellSlots{0, 0, 0});
     screen::assign_in_huge_pages(count, cell_total, 0u);
-    screen::assign_in_huge_pages(coarse, cell_total * capacity * 4, 0.0);
-    screen::assign_in_huge_pages(details, cell_total * capacity, Detail{});
-    screen::assign_in_huge_pages(members, cell_total * capacity, 0u);
+    uniform_rooms = true;
+    std::uint64_t total = 0;
+    for (std::size_t c = 0; c < cell_total; ++c) {
+      const std::size_t room = std::max(base_room, padded(occupancy[c] + occupancy[c] / 2 + 2));
+      slots[c] = {total, std::uint32_t(room), 0};
+      uniform_rooms = uniform_rooms && room == base_room;
+      total += room;
+    }
+    screen::assign_in_huge_pages(coarse, std::size_t(total) * 4, 0.0);
+    screen::assign_in_huge_pages(details, std::size_t(total), Detail{});
+    screen::assign_in_huge_pages(members, std::size_t(total), 0u);
     screen::assign_in_huge_pages(where, n, std::uint64_t(0));
+    home.assign(n, 0);
     for (std::size_t i = 0; i < n; ++i) occupy(i, cell[i]);
     stamp.assign(cell_total, 0);
     generation = 0;
@@ -278,17 +316,17 @@ struct MovingScene::Impl {
         cell_of({store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]}, &inside);
     const bool too_large = store.bounding_radius()[i] > grid_radius;
     if (!fresh) {
-      const std::size_t old_cell = std::size_t(where[i] / capacity);
+      const std::size_t old_cell = home[i];
       if (!too_large && old_cell == cell) {
-        write_slot(where[i], i);
+        write_slot(cell, std::size_t(where[i] - slots[cell].start), i);
         set_outside(i, !inside);
         return;
       }
       vacate(i);
     }
     set_outside(i, !inside);
-    if (too_large || count[cell] == capacity || outside_count > outside_limit(store.size())) {
-      if (count[cell] == capacity) capacity *= 2;
+    if (too_large || full(cell) || outside_count > outside_limit(store.size())) {
+      // (The full cell gets room for half as many again as it then holds.)
       rebuild(store.bounding_radius()[i]);
       return;
     }
@@ -330,11 +368,11 @@ struct MovingScene::Impl {
   // ---------------------------------------------------------------------
   // Queries
 
-  // A cell's coarse members: four arrays of `capacity` numbers (a multiple of
+  // A cell's coarse members: four arrays of `room` numbers (a multiple of
   // the kernels' coarse_padding), centres x, y, z and bounding radii.
-  kernels::CoarseMembers coarse_of(std::size_t cell) const {
-    const double* block = coarse.data() + cell * capacity * 4;
-    return {block, block + capacity, block + 2 * capacity, block + 3 * capacity};
+  kernels::CoarseMembers coarse_of(std::uint64_t start, std::size_t room) const {
+    const double* block = coarse.data() + start * 4;
+    return {block, block + room, block + 2 * room, block + 3 * room};
   }
 
   // Where a query looks: the trial's wrapped centre (and in cell space), the
@@ -430,7 +468,9 @@ struct MovingScene::Impl {
     // kernel (a superset), then exactly here for the few it lets through: on
     // a packing at 0.5, 7 of 128 members scanned a query meet.
     auto scan = [&](std::size_t cell, const double origin[3]) __attribute__((always_inline)) {
-      const kernels::CoarseMembers m = coarse_of(cell);
+      const std::uint64_t start = uniform_rooms ? cell * base_room : slots[cell].start;
+      const kernels::CoarseMembers m =
+          coarse_of(start, uniform_rooms ? base_room : slots[cell].room);
       const std::uint32_t end = count[cell];
       for (std::uint32_t first = 0; first < end; first += 32) {
         const std::uint32_t n = std::min<std::uint32_t>(end - first, 32);
@@ -449,7 +489,7 @@ struct MovingScene::Impl {
           c.bounding = m.bounding[k];
           const double limit = trial_reach + scale * c.bounding;
           if (c.rr >= limit * limit) continue;
-          c.at = cell * capacity + k;
+          c.at = start + k;
           __builtin_prefetch(&details[c.at]);
           __builtin_prefetch(&members[c.at]);
           if (++holding == hold && !visit_held()) return false;
@@ -611,6 +651,15 @@ const ParticleStore& MovingScene::particles() const noexcept { return impl_->sto
 const Box& MovingScene::box() const noexcept { return impl_->box; }
 const MovingSceneCounters& MovingScene::counters() const noexcept { return impl_->counters; }
 
+std::size_t MovingScene::bytes() const noexcept {
+  const Impl& s = *impl_;
+  return s.slots.capacity() * sizeof(CellSlots) + s.count.capacity() * sizeof(std::uint32_t) +
+         s.coarse.capacity() * sizeof(double) + s.details.capacity() * sizeof(Detail) +
+         s.members.capacity() * sizeof(std::uint32_t) + s.where.capacity() * sizeof(std::uint64_t) +
+         s.home.capacity() * sizeof(std::uint32_t) + s.outside.capacity() +
+         s.stamp.capacity() * sizeof(std::uint32_t);
+}
+
 MovingScene::Particle MovingScene::trial(const std::array<double, 3>& centre,
                                          const std::array<double, 6>& q) const {
   return ParticleStore::particle(centre, q);
@@ -634,6 +683,7 @@ std::uint32_t MovingScene::insert(const Particle& p) {
   s.check_particle(p, "MovingScene::insert");
   s.store.add_particle(p);
   s.where.push_back(0);
+  s.home.push_back(0);
   s.outside.push_back(0);
   s.place(i, true);
   ++s.counters.inserts;
@@ -648,10 +698,12 @@ std::uint32_t MovingScene::remove(std::size_t i) {
   s.set_outside(i, false);
   if (i != last) {
     s.where[i] = s.where[last];
+    s.home[i] = s.home[last];
     s.members[s.where[i]] = std::uint32_t(i);
     s.outside[i] = s.outside[last];
   }
   s.where.pop_back();
+  s.home.pop_back();
   s.outside.pop_back();
   s.store.swap_remove(i);
   if (s.store.size() == 0) s.rebuild(0);  // (emptied: the next particle sizes the cells)
@@ -676,12 +728,12 @@ bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
     return false;
   bool inside = true;
   const std::size_t to = s.cell_of(p.centre(), &inside);
-  const std::size_t from = std::size_t(s.where[i] / s.capacity);
+  const std::size_t from = s.home[i];
   if (!inside && !s.outside[i]) return false;  // (open boxes: the count is shared)
-  if (to != from && s.count[to] == s.capacity) return false;
+  if (to != from && s.full(to)) return false;
   s.store.set_particle(i, p);
   if (to == from) {
-    s.write_slot(s.where[i], i);
+    s.write_slot(to, std::size_t(s.where[i] - s.slots[to].start), i);
   } else {
     s.vacate(i);
     s.occupy(i, to);
@@ -707,11 +759,11 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   std::vector<std::uint32_t> new_cell(independent ? count : 0);
   for (std::size_t k = 0; k < count && independent; ++k) {
     const std::size_t i = index[k];
-    const std::uint32_t from = std::uint32_t(s.where[i] / s.capacity);
+    const std::uint32_t from = s.home[i];
     const std::uint32_t to = s.cell_of(particles[k].centre());
     new_cell[k] = to;
-    independent = particles[k].bounding_radius() <= s.grid_radius &&
-                  (to == from || s.count[to] < s.capacity) && s.stamp[from] != s.generation;
+    independent = particles[k].bounding_radius() <= s.grid_radius && (to == from || !s.full(to)) &&
+                  s.stamp[from] != s.generation;
     s.stamp[from] = s.generation;
     if (to != from) {
       independent = independent && s.stamp[to] != s.generation;
@@ -733,9 +785,9 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
     s.cell_of(particles[k].centre(), &inside);
     outside_change += std::ptrdiff_t(!inside) - std::ptrdiff_t(s.outside[i]);
     s.outside[i] = !inside;
-    const std::size_t from = std::size_t(s.where[i] / s.capacity);
+    const std::size_t from = s.home[i];
     if (from == new_cell[k]) {
-      s.write_slot(s.where[i], i);
+      s.write_slot(from, std::size_t(s.where[i] - s.slots[from].start), i);
     } else {
       s.vacate(i);
       s.occupy(i, new_cell[k]);
@@ -948,7 +1000,7 @@ std::array<int, 3> MovingScene::cell_of(const std::array<double, 3>& centre) con
 
 std::array<int, 3> MovingScene::cell_of_particle(std::size_t i) const {
   impl_->check_index(i, "MovingScene::cell_of_particle");
-  const std::size_t cell = std::size_t(impl_->where[i] / impl_->capacity);
+  const std::size_t cell = impl_->home[i];
   const auto& n = impl_->grid().cells;
   return {int(cell / (std::size_t(n[1]) * n[2])), int(cell / n[2] % n[1]), int(cell % n[2])};
 }
