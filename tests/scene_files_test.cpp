@@ -729,6 +729,12 @@ TEST(SceneFiles, MalformedLammpsDumpsNameTheirLine) {
   EXPECT_NE(short_first.find(":12: frame 0: the frame ends after 2 of its 3 atoms"),
             std::string::npos)
       << short_first;
+  // A shape the store refuses (a zero semi-axis) in the second frame: named
+  // as the reader names its own errors, "file:line: frame F: ...".
+  std::string flat = frame("2", {"1 1", "2 5"});
+  flat.replace(flat.rfind(" 2 2 2 "), 7, " 0 2 2 ");
+  const std::string refused = message("refused.dump", good + flat, 1);
+  EXPECT_NE(refused.find(":22: frame 1: atom 2:"), std::string::npos) << refused;
   const std::string huge = message("huge.dump", frame("1000000000000000000", {"1 1", "2 5"}));
   EXPECT_NE(huge.find("the frame ends after 2 of its 1000000000000000000 atoms"), std::string::npos)
       << huge;

@@ -112,7 +112,8 @@ struct Atom {
   std::size_t atoms_line;  // a data file's Atoms line
 };
 
-// `where` follows the line number in messages (" (frame 3)", or empty).
+// `where` follows the line number in messages (": frame 3", or empty), as
+// in the dump reader's own messages ("file:12: frame 3: ...").
 Scene store(std::vector<Atom>& atoms, const Box& box, std::uint32_t types, const std::string& path,
             const std::string& where) {
   Scene scene;
@@ -425,7 +426,7 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   if (more && line.rfind("ITEM:", 0) != 0)
     lines.fail(frame_name + "more atom lines than ITEM: NUMBER OF ATOMS gives (" +
                std::to_string(atoms_count) + ")");
-  Scene scene = store(atoms, box, types, path, " (frame " + std::to_string(f) + ")");
+  Scene scene = store(atoms, box, types, path, ": frame " + std::to_string(f));
   scene.frame = f;
   scene.frames = std::uint64_t(count);
   return scene;
