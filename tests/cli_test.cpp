@@ -1392,6 +1392,21 @@ TEST_F(cli, McWritesItsWholeSceneOrNothingAndChecksItsOutputFirst) {
   ASSERT_EQ(screen.exit_status, 0) << screen.err;
   EXPECT_TRUE(contains(screen.err, "64 ellipsoids")) << screen.err;
 
+  // A path with a space, a quote and a shell's special characters: the
+  // header's command quotes it, and a shell reads it back whole.
+  fs::create_directory(path("my dir's $(x);"));
+  const std::string odd = "my dir's $(x);/scene.txt";
+  ASSERT_EQ(run("mc --n 64 --packing 0.2 -o '" + std::string("my dir'\\''s $(x);/scene.txt") + "'")
+                .exit_status,
+            0);
+  const std::string odd_text = read_file(odd);
+  const std::size_t odd_at = odd_text.find("pwcontact screen ");
+  ASSERT_NE(odd_at, std::string::npos);
+  const std::size_t odd_from = odd_at + std::string("pwcontact ").size();
+  const Outcome odd_screen = run(odd_text.substr(odd_from, odd_text.find('\n', odd_at) - odd_from));
+  ASSERT_EQ(odd_screen.exit_status, 0) << odd_screen.err << odd_text.substr(0, 400);
+  EXPECT_TRUE(contains(odd_screen.err, "64 ellipsoids")) << odd_screen.err;
+
   // A path that cannot be written is refused before the run (an input/output
   // error; it was found after the whole compression).
   const Outcome nowhere = run("mc --n 64 --packing 0.2 -o no/such/directory/scene.gsd");

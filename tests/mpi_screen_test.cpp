@@ -398,6 +398,25 @@ int main(int argc, char** argv) {
           pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, cube, ScreenOptions{}, out);
         },
         "too small for the cutoff");
+    // A box or cutoff that differs between ranks (with one rank, nothing
+    // differs: a screen of no pairs).
+    for (const bool box_differs : {true, false}) {
+      auto call = [&] {
+        ParticleStore s;
+        ScreenOptions options;
+        if (!box_differs && rank == ranks - 1) options.cutoff = 1.5;
+        const Box box = box_differs && rank == ranks - 1 ? Box::periodic_box(24, 20, 23) : cube;
+        pwcontact::mpi::TaggedPairs out;
+        pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, std::vector<std::uint64_t>{}, box, options,
+                                     out);
+      };
+      if (ranks > 1)
+        expect_error(box_differs ? "a box that differs between ranks"
+                                 : "a cutoff that differs between ranks",
+                     call, box_differs ? "different box lengths" : "different cutoffs");
+      else
+        call();
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rank %d: %s\n", rank, e.what());
     MPI_Abort(MPI_COMM_WORLD, 2);

@@ -29,7 +29,8 @@
 // radii, r12 and solve for every pair).
 //
 // Every function here is collective over the communicator: every rank calls
-// it, with the same box and options. An error in the input of any rank
+// it, with the same box and options (a box, cutoff or with_mu2 that differs
+// between ranks is an error). An error in the input of any rank
 // (std::invalid_argument) is thrown on every rank, with the message of the
 // lowest rank that found one.
 #pragma once

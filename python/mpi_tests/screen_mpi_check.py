@@ -111,6 +111,17 @@ cases = [
     ("an unknown keyword", TypeError, "'bx'",
      lambda mine: pw.screen(np.array([[1.0, 1, 1]]), None, [1.0, 0.5, 0.2], comm=comm,
                             **({"bx": 1} if mine else {}))),
+    # (Not a ValueError: raised before the core, it once left the others
+    # waiting as well.)
+    ("a cutoff beyond a double", OverflowError, "too large",
+     lambda mine: pw.screen(np.array([[1.0, 1, 1]]), None, [1.0, 0.5, 0.2], box=pw.Box.cube(20),
+                            cutoff=10**400 if mine else 1.0, comm=comm)),
+    ("tags that are not integers", ValueError, "tags must be integers",
+     lambda mine: pw.screen(np.array([[1.0, 1, 1]]), None, [1.0, 0.5, 0.2], box=pw.Box.cube(20),
+                            tags=[0.5] if mine else [rank], comm=comm)),
+    ("negative tags", ValueError, "tags must be non-negative",
+     lambda mine: pw.screen(np.array([[1.0, 1, 1]]), None, [1.0, 0.5, 0.2], box=pw.Box.cube(20),
+                            tags=[-1] if mine else [rank], comm=comm)),
 ]
 for name, kind, text, call in cases:
     try:
@@ -127,6 +138,23 @@ for name, kind, text, call in cases:
                       comm=comm, gather=True)
     if rank == 0:
         check(len(after.pairs) == max(0, size - 1), f"after {name}: {len(after.pairs)} pairs")
+
+# Settings that differ between ranks (box, cutoff, gather): a ValueError on
+# every rank, not pairs by different rules or a rank waiting alone.
+if size > 1:
+    for name, kw in [("cutoff", lambda: {"cutoff": 1.0 + 0.5 * (rank == bad)}),
+                     ("box", lambda: {"box": pw.Box.cube(20 + (rank == bad))}),
+                     ("gather", lambda: {"gather": rank == bad})]:
+        arguments = {"box": pw.Box.cube(20), **kw()}
+        try:
+            pw.screen(np.array([[1.0 + rank, 1, 1]]), None, [1.0, 0.4, 0.3], comm=comm, **arguments)
+            check(False, f"a {name} that differs between ranks: no error on rank {rank}")
+        except ValueError as e:
+            check("every rank must pass the same" in str(e), f"{name} differs: rank {rank}: {e}")
+    after = pw.screen(np.array([[1.0 + rank, 1, 1]]), None, [1.0, 0.4, 0.3], box=pw.Box.cube(20),
+                      comm=comm, gather=True)
+    if rank == 0:
+        check(len(after.pairs) == size - 1, f"after the differing settings: {len(after.pairs)} pairs")
 
 for what in failures:
     print(f"rank {rank}: FAILED: {what}", flush=True)

@@ -257,8 +257,9 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     Layout and cost: every layout is read in place. Arrays whose columns
     are contiguous (a Fortran-ordered (N, 3) array, or ``a.T`` of a
     C-ordered (3, N) one) are read fastest; the usual C-ordered rows are
-    gathered by the kernels, about 25-30 % slower for the double full
-    answer on 1M pairs (README: Python, the binding's cost).
+    read by shuffles of 8 rows under AVX-512 and by gathers otherwise,
+    5-8 % slower for the double full answer on 1M pairs (README: Python,
+    the binding's cost).
 
     Returns a ContactResult. Raises ValueError for shapes and option values.
     """
@@ -579,10 +580,13 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
     comm: an mpi4py communicator (python3-mpi4py; a module built with MPI:
     ``pwcontact.with_mpi`` is True): a collective call, every rank passing the
     particles it holds (anywhere in the box) with their global ``tags`` (N,)
-    (default: numbered by rank, rank 0's first); returns a
-    DistributedScreenResult (pairs in tags; ``gather=True``: all of them
-    on rank 0). threads is then per rank. An error in any rank's input is
-    raised on every rank.
+    (non-negative integers, each given once over the ranks; default:
+    numbered by rank, rank 0's first); returns a DistributedScreenResult
+    (pairs in tags; ``gather=True``: all of them on rank 0). box, cutoff,
+    with_mu2 and gather must be the same on every rank (ValueError on every
+    rank otherwise); threads is per rank. An error in any rank's input is
+    raised on every rank: that rank's own exception there, a ValueError
+    naming the rank on the others.
 
     workspace: a ScreenWorkspace kept across calls (a simulation screening
     every so many steps), whose memory each screen reuses (with comm: each
@@ -605,11 +609,15 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
                 q)
             if workspace is not None and not isinstance(workspace, ScreenWorkspace):
                 raise TypeError(f"workspace must be a ScreenWorkspace, got {type(workspace).__name__}")
+            if tags is not None:
+                tags = _integer_array(tags, "tags")
+                if tags.size and tags.min() < 0:
+                    raise ValueError(f"tags must be non-negative integers, got {tags.min()}")
             arguments = (positions, orientations, semi_axes, q, type_semi_axes, typeid,
                          None if b is None else b._core(), float(cutoff), bool(with_mu2),
                          _threads(threads), int(comm.py2f()), tags, bool(gather),
                          None if workspace is None else workspace._workspace)
-        except (ValueError, TypeError, IndexError) as e:
+        except BaseException as e:  # (any: OverflowError, MemoryError, KeyboardInterrupt)
             local_error = e
             arguments = (None, None, None, None, None, None, None, 1.0, False, 1,
                          int(comm.py2f()), None, False, None)
@@ -620,6 +628,8 @@ def screen(positions, orientations=None, semi_axes=None, *, q=None, type_semi_ax
             if local_error is not None:
                 raise local_error from None
             raise
+        if local_error is not None:  # (no rank failed in the core's agreement: cannot be)
+            raise local_error
         return DistributedScreenResult(raw)
     positions, semi_axes, type_semi_axes, typeid, b = _scene_arguments(
         "screen", positions, orientations, semi_axes, type_semi_axes, typeid, box, ignored, q)
@@ -696,14 +706,18 @@ class HardParticleMC:
     @classmethod
     def dilute_spheroids(cls, n: int, seed: int = 1, max_aspect: float = 3.0, *, packing: float = 0.5,
                          translation: float = 0.1, rotation: float = 0.1, adapt_steps: bool = True,
-                         threads: int = 0) -> "HardParticleMC":
+                         threads: int = 0, shapes: int = 0) -> "HardParticleMC":
         """n spheroids (aspect ratios 1/max_aspect .. max_aspect, the volume
-        of a sphere of radius 0.5) on a dilute lattice, none overlapping: the
-        start of ``pwcontact mc``. n >= 1 and seed >= 0 integers, max_aspect
-        as spheroid_scene takes it (ValueError naming the argument)."""
+        of a sphere of radius 0.5) on a dilute lattice, none overlapping.
+        shapes: 0, every spheroid an aspect ratio of its own (log-uniform);
+        k > 0, drawn from k log-spaced over the range. ``pwcontact mc --n N
+        --seed S`` starts from dilute_spheroids(N, S, shapes=16). n >= 1,
+        seed >= 0 and shapes >= 0 integers, max_aspect as spheroid_scene
+        takes it (ValueError naming the argument)."""
         return cls(None, _core_mc=_core.HardParticleMC.dilute_spheroids(
             _integer(n, "n", 1), _integer(seed, "seed", 0, _UINT64_MAX), _max_aspect(max_aspect),
-            float(packing), float(translation), float(rotation), bool(adapt_steps), _threads(threads)))
+            float(packing), float(translation), float(rotation), bool(adapt_steps), _threads(threads),
+            _integer(shapes, "shapes", 0, 2**32)))
 
     def sweep(self) -> dict:
         """One move proposed per particle: {proposed, accepted, left_domain
@@ -817,10 +831,23 @@ def read_gsd(path: str, frame: int = -1) -> dict:
     diameter / 2; in 2D Ellipse or Ellipsoid a, b), typeid, box (a Box:
     configuration/box, 2D by configuration/dimensions), with type_names and
     frame. ValueError names the file, frame and type of a shape it cannot
-    take."""
+    take, or a file that is not GSD; FileNotFoundError, a file that does
+    not exist."""
+    import errno
+    import os
+
     import gsd.hoomd
 
-    with gsd.hoomd.open(path, "rb") as trajectory:
+    # (gsd 2.7 reports a missing file as "Bad file descriptor" and a file
+    # of another kind as a RuntimeError: named here as the other readers
+    # name them.)
+    if not os.path.exists(path):
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), path)
+    try:
+        opened = gsd.hoomd.open(path, "rb")
+    except RuntimeError as e:
+        raise ValueError(f"{path}: {e}") from None
+    with opened as trajectory:
         snap, index, frames = _gsd_frame(trajectory, frame)
         particles = snap.particles
         n = int(particles.N)

@@ -214,9 +214,16 @@ def test_reference_names_an_argument_of_the_wrong_shape():
 
 def test_a_missing_file_is_file_not_found(tmp_path):
     missing = str(tmp_path / "missing")
-    for read in (pw.read_lammps_data, pw.read_lammps_dump, pw.read_gsd_native):
+    for read in (pw.read_lammps_data, pw.read_lammps_dump, pw.read_gsd_native, pw.read_gsd):
         with pytest.raises(FileNotFoundError, match="missing"):
             read(missing)
+    # A file of another format: ValueError from both GSD readers (the gsd
+    # package raised RuntimeError).
+    other = tmp_path / "other.gsd"
+    other.write_text("not a GSD file\n" * 20)
+    for read in (pw.read_gsd, pw.read_gsd_native):
+        with pytest.raises(ValueError, match="other.gsd"):
+            read(str(other))
     with pytest.raises(OSError):
         pw.read_lammps_data(str(tmp_path))  # a directory
 
@@ -309,3 +316,12 @@ def test_indices_beyond_int64_are_index_errors_naming_them():
     with pytest.raises(IndexError, match=f"move 1: particle {2**64 - 1} does not exist"):
         scene.move_many(huge, [[0.0, 0, 0], [4.0, 0, 0]], semi_axes=[1, 1, 1])
     assert len(scene) == 2
+
+
+def test_dilute_spheroids_takes_the_command_lines_sixteen_shapes():
+    mixed = pw.HardParticleMC.dilute_spheroids(100, seed=1)
+    sixteen = pw.HardParticleMC.dilute_spheroids(100, seed=1, shapes=16)
+    assert len({tuple(a) for a in np.round(sixteen.scene()["semi_axes"], 12)}) <= 16
+    assert len({tuple(a) for a in np.round(mixed.scene()["semi_axes"], 12)}) > 16
+    with pytest.raises(ValueError, match="shapes"):
+        pw.HardParticleMC.dilute_spheroids(100, shapes=-1)

@@ -74,7 +74,7 @@ double parse_cutoff(std::string_view text) {
   if (!(square >= std::numeric_limits<double>::min()) || !std::isfinite(square))
     throw std::invalid_argument(quoted(text) +
                                 " has a square outside the range of normal doubles (mu^2 is "
-                                "compared with cutoff^2): from 1.5e-154 to 1.3e154");
+                                "compared with cutoff^2): from 1.5e-154 to 1.34e154");
   return cutoff;
 }
 

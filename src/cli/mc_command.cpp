@@ -3,6 +3,7 @@
 // and are compressed, sweep by sweep, to a packing fraction without ever
 // overlapping; the final scene is written for `pwcontact screen`.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -139,6 +140,20 @@ void write_gsd(const HardParticleMC& mc, OutputFile& out) {
   out.commit();
 }
 
+// A path as a POSIX shell reads it back: as it is when it holds only
+// characters no shell treats specially, else in single quotes (a quote
+// itself closed, escaped and reopened).
+std::string shell_quoted(const std::string& path) {
+  const bool plain = !path.empty() && std::all_of(path.begin(), path.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) ||
+           std::string_view("_./+,:@%=-").find(c) != std::string_view::npos;
+  });
+  if (plain) return path;
+  std::string quoted = "'";
+  for (char c : path) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
 // The scene as `pwcontact screen --format axes` lines, after a header of
 // comment lines (made as a string: a fixed buffer cut a long path short, and
 // with it the header's last newline, which put particle 0 into a comment).
@@ -157,7 +172,7 @@ void write_text(const HardParticleMC& mc, OutputFile& out, const std::string& pa
       "# pwcontact mc: %zu spheroids, packing fraction %.6f after %zu sweeps, periodic box",
       s.size(), mc.packing(), mc.sweeps());
   out.write(std::string(summary) + lengths + "\n# read back: pwcontact screen --format axes --box" +
-            lengths + " " + path + "\n# x y z a b c qw qx qy qz\n");
+            lengths + " " + shell_quoted(path) + "\n# x y z a b c qw qx qy qz\n");
   char line[400];  // (ten numbers of at most max_number_chars characters)
   for (std::size_t i = 0; i < s.size(); ++i) {
     const auto& a = mc.semi_axes()[i];

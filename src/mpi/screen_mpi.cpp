@@ -251,6 +251,30 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   else if (options.threads < 0)
     error = "threads must be >= 0 (0 = all)";
   throw_if_any(comm, error);
+  // The box and the options that decide the pairs, the same on every rank:
+  // ranks that differ would pair particles by different rules, or wait for
+  // each other in calls the others do not make.
+  {
+    const double mine[10] = {box.length[0],        box.length[1],
+                             box.length[2],        box.tilt[0],
+                             box.tilt[1],          box.tilt[2],
+                             double(box.periodic), double(box.two_dimensional),
+                             options.cutoff,       double(options.with_mu2)};
+    double low[10], high[10];
+    MPI_Allreduce(mine, low, 10, MPI_DOUBLE, MPI_MIN, comm);
+    MPI_Allreduce(mine, high, 10, MPI_DOUBLE, MPI_MAX, comm);
+    const char* names[10] = {"box lengths", "box lengths",      "box lengths", "box tilts",
+                             "box tilts",   "box tilts",        "box kinds",   "box kinds",
+                             "cutoffs",     "with_mu2 settings"};
+    for (int k = 0; k < 10; ++k)
+      if (low[k] != high[k]) {
+        // (Thrown on every rank alike: every rank has the same low and high.)
+        throw std::invalid_argument(std::string("screen_pairs (MPI): the ranks give different ") +
+                                    names[k] + " (from " + std::to_string(low[k]) + " to " +
+                                    std::to_string(high[k]) +
+                                    "); every rank must pass the same box and options");
+      }
+  }
 
   const double start = MPI_Wtime();
   Decomposition grid;

@@ -633,6 +633,16 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
     if (own) std::rethrow_exception(own);
     throw;
   }
+  // gather, the same on every rank (the box and the options are checked
+  // by the screen): a rank alone in gather_pairs would wait there for ever.
+  int gathers = gather ? 1 : 0, all_gather = 0;
+  MPI_Allreduce(&gathers, &all_gather, 1, MPI_INT, MPI_SUM, comm);
+  int ranks = 1;
+  MPI_Comm_size(comm, &ranks);
+  if (all_gather != 0 && all_gather != ranks)
+    throw py::value_error("screen (MPI): gather is True on " + std::to_string(all_gather) +
+                          " of the " + std::to_string(ranks) +
+                          " ranks; every rank must pass the same gather");
   const std::size_t n = store.size();
   if (tags_in.is_none()) {
     tags.resize(n);
@@ -1338,15 +1348,17 @@ PYBIND11_MODULE(_pwcontact, m) {
       .def_static(
           "dilute_spheroids",
           [](std::size_t n, std::uint64_t seed, double max_aspect, double packing,
-             double translation, double rotation, bool adapt_steps, int threads) {
+             double translation, double rotation, bool adapt_steps, int threads,
+             std::size_t shapes) {
             const pwcontact::HardParticleMCOptions o = PyHardParticleMC::options(
                 packing, translation, rotation, adapt_steps, seed, threads);
             py::gil_scoped_release release;
             return PyHardParticleMC(
-                pwcontact::HardParticleMC::dilute_spheroids(n, seed, max_aspect, o));
+                pwcontact::HardParticleMC::dilute_spheroids(n, seed, max_aspect, o, shapes));
           },
           py::arg("n"), py::arg("seed"), py::arg("max_aspect"), py::arg("packing"),
-          py::arg("translation"), py::arg("rotation"), py::arg("adapt_steps"), py::arg("threads"))
+          py::arg("translation"), py::arg("rotation"), py::arg("adapt_steps"), py::arg("threads"),
+          py::arg("shapes") = std::size_t(0))
       .def("sweep", &PyHardParticleMC::sweep)
       .def("compress",
            [](PyHardParticleMC& s) {

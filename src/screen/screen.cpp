@@ -211,8 +211,8 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
           "screen_pairs: the periodic box is too small for the cutoff: its width " +
           std::to_string(widths[k]) + " across axis " + std::to_string(k) +
           (box.orthorhombic() ? std::string() : " (between the faces of the tilted box)") +
-          " is less than twice the largest reach cutoff * 2 R_max = " + std::to_string(reach) +
-          " (the minimum image convention would miss pairs)");
+          " is less than twice the largest reach (the reach cutoff * 2 R_max is " +
+          std::to_string(reach) + "; the minimum image convention would miss pairs)");
   return options;
 }
 
