@@ -47,6 +47,16 @@ BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   if (options.threads < 0)
     throw std::invalid_argument("BatchOptions::threads must be >= 0 (0 = all), got " +
                                 std::to_string(options.threads));
+  // Values cast from outside their enumerations: refused, not taken for a
+  // default.
+  auto check_enum = [](const char* name, int value, int last) {
+    if (value < 0 || value > last)
+      throw std::invalid_argument(std::string("BatchOptions::") + name + ": " +
+                                  std::to_string(value) + " is not one of its values");
+  };
+  check_enum("precision", int(options.precision), int(Precision::mixed));
+  check_enum("accuracy", int(options.accuracy), int(Accuracy::high));
+  check_enum("formulation", int(options.formulation), int(Formulation::log_odds));
   BatchReport report;
   report.pairs = pairs;
   report.isa = resolve_isa(options.isa);

@@ -147,6 +147,11 @@ std::vector<Isa> supported_isas() {
 }
 
 Isa resolve_isa(Isa requested) {
+  // (A value cast from outside the enumeration is a malformed call, not an
+  // instruction set this CPU lacks.)
+  if (!(int(requested) >= int(Isa::automatic) && int(requested) <= int(Isa::fallback)))
+    throw std::invalid_argument("BatchOptions::isa: " + std::to_string(int(requested)) +
+                                " is not an Isa");
   if (requested == Isa::automatic) {
     const EnvironmentChoice& env = environment_choice();
     if (!env.invalid_value.empty())

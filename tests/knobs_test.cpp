@@ -170,6 +170,26 @@ TEST(Knobs, NegativeIterationsOrThreadsThrow) {
   EXPECT_THROW(solve_few<double>(with_isa(Isa::automatic, 0, -1)), std::invalid_argument);
 }
 
+// Values cast from outside their enumerations are malformed calls: refused,
+// not taken for a default (precision, accuracy, formulation were), nor
+// blamed on the CPU (isa was).
+TEST(Knobs, ValuesOutsideTheirEnumerationsThrowInvalidArgument) {
+  for (int value : {-1, 9, 77}) {
+    pwcontact::BatchOptions options;
+    options.isa = Isa(value);
+    EXPECT_THROW(solve_few<double>(options), std::invalid_argument) << "isa " << value;
+    options = {};
+    options.precision = pwcontact::Precision(value);
+    EXPECT_THROW(solve_few<double>(options), std::invalid_argument) << "precision " << value;
+    options = {};
+    options.accuracy = pwcontact::Accuracy(value);
+    EXPECT_THROW(solve_few<double>(options), std::invalid_argument) << "accuracy " << value;
+    options = {};
+    options.formulation = pwcontact::Formulation(value);
+    EXPECT_THROW(solve_few<double>(options), std::invalid_argument) << "formulation " << value;
+  }
+}
+
 TEST(Knobs, NamesRoundTrip) {
   for (Precision p : {Precision::automatic, Precision::double_precision,
                       Precision::single_precision, Precision::mixed})

@@ -398,6 +398,19 @@ int main(int argc, char** argv) {
           pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, cube, ScreenOptions{}, out);
         },
         "too small for the cutoff");
+    expect_error(
+        "a particle resize() left unset",
+        [&] {
+          ParticleStore s;
+          std::vector<std::uint64_t> tags;
+          if (rank == ranks - 1) {
+            s.resize(1);
+            tags = {0};
+          }
+          pwcontact::mpi::TaggedPairs out;
+          pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, cube, ScreenOptions{}, out);
+        },
+        "particle 0 was never set");
     // A box or cutoff that differs between ranks (with one rank, nothing
     // differs: a screen of no pairs).
     for (const bool box_differs : {true, false}) {

@@ -1645,3 +1645,44 @@ TEST(Screen, TriclinicCentresFarFromTheBoxGiveThePairsAndMu2OfTheSceneAtTheBox) 
 }
 
 }  // namespace
+
+namespace {
+
+// A slot resize() left unset has no shape: every screen and scene refuses
+// the store, naming it. (Its reach of 0 sized no grid: screen_pairs and
+// for_each_candidate_pair never returned, and screen_candidates reported
+// the pair found.)
+TEST(Screen, AParticleThatResizeLeftUnsetIsRefusedNamingIt) {
+  ParticleStore s;
+  s.resize(3);
+  s.set_axes(0, {1, 1, 1}, {1, 0.5, 0.5}, {1, 0, 0, 0});
+  s.set_axes(2, {2, 1, 1}, {1, 0.5, 0.5}, {1, 0, 0, 0});
+  EXPECT_EQ(s.first_unset(), 1u);
+  auto expect_refused = [](auto&& call) {
+    try {
+      call();
+      ADD_FAILURE() << "no exception";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("particle 1 was never set"), std::string::npos)
+          << e.what();
+    }
+  };
+  for (const Box& box : {Box::open(), Box::periodic_box(10, 10, 10)}) {
+    ScreenedPairs out;
+    expect_refused([&] { pwcontact::screen_pairs(s, box, {}, out); });
+    const std::uint32_t first[1] = {0}, second[1] = {1};
+    expect_refused([&] { pwcontact::screen_candidates(s, box, first, second, 1, {}, out); });
+    expect_refused([&] {
+      pwcontact::for_each_candidate_pair(s, box, 1.0, 1,
+                                         [](int, std::uint32_t, std::uint32_t, const double*) {});
+    });
+    expect_refused([&] { pwcontact::MovingScene scene(s, box); });
+  }
+  s.set_axes(1, {5, 5, 5}, {1, 0.5, 0.5}, {1, 0, 0, 0});
+  EXPECT_EQ(s.first_unset(), 3u);
+  ScreenedPairs out;
+  pwcontact::screen_pairs(s, Box::open(), {}, out);
+  EXPECT_EQ(out.size(), 1u);
+}
+
+}  // namespace

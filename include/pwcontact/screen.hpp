@@ -88,8 +88,11 @@ class ParticleStore {
                 const std::array<double, 4>& quaternion);
   // For filling in parallel: resize(n), then set(i, ...) or set_axes(i, ...)
   // for every i (from any thread, each i once), as add and add_axes would
-  // (and with the same checks).
+  // (and with the same checks). A slot left unset has no shape: the screens
+  // and scenes refuse a store with one (std::invalid_argument naming it).
   void resize(std::size_t n);
+  // The first particle that resize() left unset, or size() when there is none.
+  std::size_t first_unset() const noexcept;
   void set(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q);
   void set_axes(std::size_t i, const std::array<double, 3>& centre,
                 const std::array<double, 3>& semi_axes, const std::array<double, 4>& quaternion);

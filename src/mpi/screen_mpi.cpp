@@ -250,6 +250,9 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     error = "the cutoff must be positive and finite (and its square a normal number)";
   else if (options.threads < 0)
     error = "threads must be >= 0 (0 = all)";
+  else if (const std::size_t unset = particles.first_unset(); unset < particles.size())
+    error = "particle " + std::to_string(unset) +
+            " was never set (ParticleStore::resize leaves every particle to set or set_axes)";
   throw_if_any(comm, error);
   // The box and the options that decide the pairs, the same on every rank:
   // ranks that differ would pair particles by different rules, or wait for

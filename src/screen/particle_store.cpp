@@ -99,6 +99,15 @@ void ParticleStore::resize(std::size_t n) {
   type_id_.resize(n, untyped);
 }
 
+std::size_t ParticleStore::first_unset() const noexcept {
+  // (Every particle set has a positive bounding radius: its Q is positive
+  // definite. resize() leaves zeros.)
+  const std::vector<double>& bounding = bounding_radius();
+  for (std::size_t i = 0; i < bounding.size(); ++i)
+    if (!(bounding[i] > 0)) return i;
+  return bounding.size();
+}
+
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
   const std::size_t i = size();
   resize(i + 1);
