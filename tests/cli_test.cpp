@@ -1366,6 +1366,12 @@ TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
       << too_few.err;
   EXPECT_FALSE(contains(too_few.err, "sweep 1,")) << too_few.err;
   EXPECT_FALSE(fs::exists(path("few.gsd")));
+  // One spheroid: the same message (its lattice of one site was narrower
+  // than a scene takes, and the scene's own message came first).
+  const Outcome one = run("mc --n 1 -o one.gsd");
+  EXPECT_EQ(one.exit_status, 2) << one.err;
+  EXPECT_TRUE(contains(one.err, "1 particles are too few for the packing fraction")) << one.err;
+  EXPECT_FALSE(fs::exists(path("one.gsd")));
 }
 
 TEST_F(cli, McWritesItsWholeSceneOrNothingAndChecksItsOutputFirst) {
