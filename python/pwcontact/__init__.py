@@ -100,8 +100,8 @@ def _integer_array(values, name: str) -> np.ndarray:
 
 _UINT64_MAX = 2**64 - 1
 
-# As the command line's --threads: more would only exhaust the OpenMP
-# runtime's stacks (a crash, not an error).
+# As the command line's --threads (10**5 threads segfaulted the interpreter
+# in the batched MovingScene query and in screen).
 _MAX_THREADS = 1024
 
 

@@ -280,8 +280,8 @@ def test_float32_with_high_accuracy_needs_double_precision():
 
 @pytest.mark.parametrize("threads", [-1, 1025, 100000, 2.7, "2", True])
 def test_threads_must_be_an_integer_from_0_to_1024(threads):
-    # (100000 threads crashed the interpreter: the OpenMP runtime ran out of
-    # stacks; 2.7 was truncated to 2.)
+    # (100000 threads segfaulted the interpreter in overlaps_many and
+    # screen; 2.7 was truncated to 2.)
     r12 = np.array([[3.0, 0, 0]])
     q = np.array([[1.0, 0, 0, 1, 0, 1]])
     positions = np.array([[0.0, 0, 0], [4.0, 0, 0]])

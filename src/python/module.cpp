@@ -133,8 +133,8 @@ std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arra
 }
 
 int thread_count(int threads) {
-  // (At most the command line's 1024: more only exhausts the OpenMP
-  // runtime's stacks, a crash of the interpreter rather than an error.)
+  // (At most the command line's 1024: 10^5 threads segfaulted the
+  // interpreter in the batched MovingScene query and in screen.)
   if (threads < 0 || threads > 1024)
     throw py::value_error("threads must be in 0 .. 1024 (0: all), got " + std::to_string(threads));
   return threads > 0 ? threads : omp_get_max_threads();
