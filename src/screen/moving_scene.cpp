@@ -125,16 +125,22 @@ struct MovingScene::Impl {
   // recomputed here, they were a cost of every move.)
   std::array<double, 3> widths = {0, 0, 0};
   void check_box(double radius, double cutoff, const char* who) const {
+    check_reach(cutoff * 2 * radius, who, "", [&] {
+      return "cutoff * 2 R = " + std::to_string(cutoff * 2 * radius) + " (cutoff " +
+             std::to_string(cutoff) + ", bounding radius " + std::to_string(radius);
+    });
+  }
+  // A reach that must fit twice across every periodic axis; `terms()` says
+  // what it is made of (built only for the message).
+  template <class Terms>
+  void check_reach(double reach, const char* who, const char* subject, const Terms& terms) const {
     if (!box.periodic) return;
-    const double reach = cutoff * 2 * radius;
     for (int k = 0; k < 3; ++k)
       if (box.periodic_along(k) && !(2 * reach <= widths[k]))
-        throw std::invalid_argument(
-            std::string(who) + ": the periodic box is too small: its width " +
-            std::to_string(widths[k]) + " across axis " + std::to_string(k) +
-            " is less than twice the reach cutoff * 2 R = " + std::to_string(reach) + " (cutoff " +
-            std::to_string(cutoff) + ", bounding radius " + std::to_string(radius) +
-            "; the minimum image convention would miss pairs)");
+        throw std::invalid_argument(std::string(who) + ": the periodic box is too small" + subject +
+                                    ": its width " + std::to_string(widths[k]) + " across axis " +
+                                    std::to_string(k) + " is less than twice the reach " + terms() +
+                                    "; the minimum image convention would miss pairs)");
   }
 
   // Particle i into slot `slot` of `cell`.
@@ -344,18 +350,13 @@ struct MovingScene::Impl {
   // largest of them must fit twice across a periodic box (the minimum image
   // would otherwise answer for the wrong image).
   void check_trial(const Particle& trial, double cutoff, const char* who) const {
-    if (!box.periodic) return;
     const double reach = cutoff * (trial.bounding_radius() + grid_radius);
-    for (int k = 0; k < 3; ++k)
-      if (box.periodic_along(k) && !(2 * reach <= widths[k]))
-        throw std::invalid_argument(
-            std::string(who) +
-            ": the periodic box is too small for the trial particle: its width " +
-            std::to_string(widths[k]) + " across axis " + std::to_string(k) +
-            " is less than twice the reach cutoff * (R_trial + R_max) = " + std::to_string(reach) +
-            " (cutoff " + std::to_string(cutoff) + ", bounding radius " +
-            std::to_string(trial.bounding_radius()) + ", the scene's largest " +
-            std::to_string(grid_radius) + "; the minimum image convention would miss pairs)");
+    check_reach(reach, who, " for the trial particle", [&] {
+      return "cutoff * (R_trial + R_max) = " + std::to_string(reach) + " (cutoff " +
+             std::to_string(cutoff) + ", bounding radius " +
+             std::to_string(trial.bounding_radius()) + ", the scene's largest " +
+             std::to_string(grid_radius);
+    });
   }
 
   void check_particle(const Particle& p, const char* who) const {
