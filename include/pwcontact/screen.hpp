@@ -93,6 +93,11 @@ class ParticleStore {
   void resize(std::size_t n);
   // The first particle that resize() left unset, or size() when there is none.
   std::size_t first_unset() const noexcept;
+  // What is wrong with a store that has an unset particle ("particle i was
+  // never set (...)"), or "" when every particle is set; require_set throws
+  // it as std::invalid_argument, after "<who>: ".
+  std::string unset_message() const;
+  void require_set(const char* who) const;
   void set(std::size_t i, const std::array<double, 3>& centre, const std::array<double, 6>& q);
   void set_axes(std::size_t i, const std::array<double, 3>& centre,
                 const std::array<double, 3>& semi_axes, const std::array<double, 4>& quaternion);

@@ -131,20 +131,11 @@ struct Decomposition {
 
   std::array<double, 3> unit(const double x[3]) const {
     std::array<double, 3> t{};
-    double s[3] = {0, 0, 0};
-    geometry.fractional(x, s);
-    // Far from the box, from the wrapped position (as the cells take it:
-    // s itself is then eps |s| off, beyond 2^52 box lengths wholly).
-    const bool far = !screen::BoxGeometry::near_box(s);
-    if (far) {
-      double w[3];
-      geometry.wrap(x, w);
-      geometry.fractional(w, s);
-    }
+    double s[3];
+    geometry.reduced_fractional(x, s);  // (as the cells take a centre)
     for (int k = 0; k < 3; ++k)
       if (geometry.periodic[k])
-        t[std::size_t(k)] =
-            far ? std::clamp(s[k], 0.0, 1.0) : screen::BoxGeometry::fraction_of(s[k]);
+        t[std::size_t(k)] = s[k];
       else if (extent[std::size_t(k)] > 0)
         t[std::size_t(k)] =
             std::clamp((x[k] - low[std::size_t(k)]) / extent[std::size_t(k)], 0.0, 1.0);
@@ -250,9 +241,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     error = "the cutoff must be positive and finite (and its square a normal number)";
   else if (options.threads < 0)
     error = "threads must be >= 0 (0 = all)";
-  else if (const std::size_t unset = particles.first_unset(); unset < particles.size())
-    error = "particle " + std::to_string(unset) +
-            " was never set (ParticleStore::resize leaves every particle to set or set_axes)";
+  else
+    error = particles.unset_message();
   throw_if_any(comm, error);
   // The box and the options that decide the pairs, the same on every rank:
   // ranks that differ would pair particles by different rules, or wait for

@@ -166,6 +166,24 @@ struct BoxGeometry {
         if (periodic[c]) w[r] += h[r][c] * s[c];
     }
   }
+  // The fractional coordinates of x reduced into [0, 1] along the periodic
+  // axes (where in the box wrap() places it): s - floor s near the box;
+  // beyond, those of the wrapped position, clamped (they lie in [0, 1] to
+  // rounding; s itself is eps |s| off there, beyond 2^52 box lengths
+  // wholly). Along open axes s is meaningless: the callers take x there.
+  void reduced_fractional(const double x[3], double s[3]) const {
+    fractional(x, s);
+    if (near_box(s)) {
+      for (int k = 0; k < 3; ++k)
+        if (periodic[k]) s[k] = fraction_of(s[k]);
+      return;
+    }
+    double w[3];
+    wrap(x, w);
+    fractional(w, s);
+    for (int k = 0; k < 3; ++k)
+      if (periodic[k]) s[k] = std::clamp(s[k], 0.0, 1.0);
+  }
   // sum_k shift[k] a_k: the image shift of a run of cells.
   void shift_vector(const int shift[3], double v[3]) const {
     for (int r = 0; r < 3; ++r) {
@@ -225,21 +243,9 @@ struct CellLists {
   void cell_space_of_centre(const double x[3], double u[3]) const {
     if (geometry.triclinic) {
       double s[3];
-      geometry.fractional(x, s);
-      if (!BoxGeometry::near_box(s)) {
-        // (From the position wrap() gives, whose s lies in [0, 1] to
-        // rounding: clamped, a cell on the side of the box it lies on.)
-        double w[3];
-        geometry.wrap_far(x, w);
-        geometry.fractional(w, s);
-        for (int k = 0; k < 3; ++k)
-          u[k] = geometry.periodic[k] ? std::clamp(s[k], 0.0, 1.0) * geometry.width[k]
-                                      : x[k] - origin[k];
-        return;
-      }
+      geometry.reduced_fractional(x, s);
       for (int k = 0; k < 3; ++k)
-        u[k] = geometry.periodic[k] ? BoxGeometry::fraction_of(s[k]) * geometry.width[k]
-                                    : x[k] - origin[k];
+        u[k] = geometry.periodic[k] ? s[k] * geometry.width[k] : x[k] - origin[k];
       return;
     }
     double w[3];

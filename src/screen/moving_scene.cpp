@@ -625,10 +625,7 @@ MovingScene::MovingScene(ParticleStore particles, const Box& box, const MovingSc
                                 std::to_string(options.max_cutoff));
   if (particles.size() >= (std::size_t(1) << 31))
     throw std::invalid_argument("MovingScene: at most 2^31 - 1 particles");
-  if (const std::size_t unset = particles.first_unset(); unset < particles.size())
-    throw std::invalid_argument("MovingScene: particle " + std::to_string(unset) +
-                                " was never set (ParticleStore::resize leaves every particle "
-                                "to set or set_axes)");
+  particles.require_set("MovingScene");
   impl_->store = std::move(particles);
   impl_->box = box;
   if (box.periodic) impl_->widths = box.perpendicular_widths();

@@ -108,6 +108,18 @@ std::size_t ParticleStore::first_unset() const noexcept {
   return bounding.size();
 }
 
+std::string ParticleStore::unset_message() const {
+  const std::size_t unset = first_unset();
+  if (unset == size()) return "";
+  return "particle " + std::to_string(unset) +
+         " was never set (ParticleStore::resize leaves every particle to set or set_axes)";
+}
+
+void ParticleStore::require_set(const char* who) const {
+  if (const std::string message = unset_message(); !message.empty())
+    throw std::invalid_argument(std::string(who) + ": " + message);
+}
+
 void ParticleStore::add(const std::array<double, 3>& centre, const std::array<double, 6>& q) {
   const std::size_t i = size();
   resize(i + 1);

@@ -202,10 +202,7 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
     throw std::invalid_argument("screen_pairs: at most 2^31 - 1 particles");
   // (A slot resize() left unset has a reach of 0, which no grid of cells can
   // be sized for: the cell lists' search for a grid never ended.)
-  if (const std::size_t unset = particles.first_unset(); unset < particles.size())
-    throw std::invalid_argument("screen_pairs: particle " + std::to_string(unset) +
-                                " was never set (ParticleStore::resize leaves every particle "
-                                "to set or set_axes)");
+  particles.require_set("screen_pairs");
   if (!box.periodic || particles.size() == 0) return options;
   const std::vector<double>& bounding = particles.bounding_radius();
   const double largest = *std::max_element(bounding.begin(), bounding.end());
