@@ -8,6 +8,8 @@
 #include <cmath>
 #include <map>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -203,6 +205,93 @@ TEST(SkinNeighborList, FlatEllipsesInAPlaneKeepTheListWhileTheirMovesAreSmall) {
     }
   }
   EXPECT_GT(kept, 15u) << "the list is kept while the moves are small";
+}
+
+// A 2D box whose particles are not all in its plane: the screen measures
+// their pairs in 3D, and so must the skin (the in-plane inscribed radius
+// bounds only moves and turns within the plane). Was: discs tilted out of
+// the plane, or a centre moved back onto it, kept the list while a pair
+// fell below the cutoff, and the pair was missing. The oracle: the
+// reference path in long double.
+TEST(SkinNeighborList, ParticlesOutOfATwoDimensionalBoxsPlaneMeasureTheSkinIn3D) {
+  using pwtest::long_double_oracle;
+  using pwtest::make_pair;
+  const Box box = Box::two_dimensional_box(20, 20);
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.5;
+  options.skin = 0.2;
+  auto check = [&](const std::array<double, 3>& c0, const std::array<double, 3>& c1,
+                   const pwcontact::QuadraticForm& q, const std::string& where) {
+    // (Both steps are called on one list: the first builds it.)
+    return [=](pwcontact::SkinNeighborList& list) {
+      ParticleStore s;
+      s.add(c0, q);
+      s.add(c1, q);
+      pwcontact::ScreenedPairs pairs;
+      list.update(s, box, pairs);
+      const double mu2 = double(
+          long_double_oracle(make_pair({c1[0] - c0[0], c1[1] - c0[1], c1[2] - c0[2]}, q, q)).mu2);
+      EXPECT_EQ(pairs.size(), mu2 < options.cutoff * options.cutoff ? 1u : 0u)
+          << where << ": the oracle's mu^2 " << mu2;
+    };
+  };
+  {
+    // Discs (1, 1, 0.01) turned by 45 degrees about x, 0.05 then 0.04 apart
+    // along y: mu 1.77 then 1.41 (tilted, a move along y meets the thin side).
+    const double half = 0.39269908169872414;  // pi / 8
+    const pwcontact::QuadraticForm q = pwcontact::quadratic_form_from_quaternion(
+        {1, 1, 0.01}, {std::cos(half), std::sin(half), 0, 0});
+    pwcontact::SkinNeighborList list(options);
+    check({5, 5, 0}, {5, 5.05, 0}, q, "tilted discs, built")(list);
+    check({5, 5, 0}, {5, 5.04, 0}, q, "tilted discs, moved by 0.01")(list);
+  }
+  {
+    // Flat particles in the plane's orientation, one centre off the plane
+    // by 0.025, then moved onto it: mu 1.30 at z = 0.
+    const pwcontact::QuadraticForm q =
+        pwcontact::quadratic_form({1, 1, 0.01}, {1, 0, 0, 0, 1, 0, 0, 0, 1});
+    pwcontact::SkinNeighborList list(options);
+    check({5, 5, 0}, {7.6, 5, 0.025}, q, "a centre off the plane, built")(list);
+    check({5, 5, 0}, {7.6, 5, 0}, q, "moved onto the plane")(list);
+  }
+}
+
+// A kept list checks the store as a rebuild's screen does: a particle that
+// resize() left unset (Q = 0) is refused, not taken for one that never
+// moved.
+TEST(SkinNeighborList, AnUnsetParticleIsRefusedWhenTheListIsKept) {
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.5;
+  options.skin = 5;
+  pwcontact::SkinNeighborList list(options);
+  ParticleStore a;
+  a.add({0, 0, 0}, pwcontact::sphere(1));
+  a.add({2.5, 0, 0}, pwcontact::sphere(1));
+  pwcontact::ScreenedPairs pairs;
+  list.update(a, Box::open(), pairs);
+  ParticleStore b;
+  b.resize(2);
+  b.set(1, {2.5, 0, 0}, pwcontact::sphere(1));
+  try {
+    list.update(b, Box::open(), pairs);
+    ADD_FAILURE() << "an unset particle was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("particle 0 was never set"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(SkinNeighborList, ACutoffAndSkinWhoseSumOverflowsIsRefusedForThat) {
+  pwcontact::SkinOptions options;
+  options.cutoff = 1e308;
+  options.skin = 1e308;
+  try {
+    pwcontact::SkinNeighborList list(options);
+    ADD_FAILURE() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cutoff + skin must be finite"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(SkinNeighborList, ATurnAloneBeyondTheSkinRebuildsTheList) {

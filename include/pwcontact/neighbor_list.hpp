@@ -16,9 +16,13 @@
 // mu_cut + m_i, m_i = (d_i + mu_cut t_i) / rho_i (a ball of radius x lies in
 // x / rho_i times the ellipsoid), and two particles with mu < mu_cut now had
 // mu < mu_cut + max(m_i, m_j) then. The list is kept while every m_i <= skin.
-// In a 2D box only the directions in the plane matter, and rho_i is the
-// in-plane inscribed radius (of the x-y block of Q_i), which a third
-// semi-axis smaller than the other two does not shrink.
+// In a 2D box whose particles all lie in the plane (centres at z = 0, forms
+// with no x-z or y-z term, exactly), only the directions in the plane
+// matter, and rho_i is the in-plane inscribed radius (of the x-y block of
+// Q_i), which a third semi-axis smaller than the other two does not shrink;
+// a particle that then leaves the plane (a centre off z = 0, a form tilted
+// out of it) rebuilds the list. Otherwise, in a 2D box too, rho_i is the 3D
+// inscribed radius: the screen measures such pairs in 3D.
 // (For a turn by theta of semi-axes a >= c, |Q' - Q|_F is at most about
 // sqrt(2) (a^2 - c^2) theta.)
 //
@@ -61,7 +65,7 @@ struct SkinReport {
 class SkinNeighborList {
  public:
   // Throws std::invalid_argument for a cutoff below 1 or not finite, or a
-  // skin that is not positive and finite.
+  // skin that is not positive, or whose sum with the cutoff is not finite.
   explicit SkinNeighborList(const SkinOptions& options = {});
 
   // The pairs (i < j, sorted) with mu < cutoff of the particles as they are
@@ -79,8 +83,10 @@ class SkinNeighborList {
   SkinOptions options_;
   std::size_t rebuilds_ = 0;
   Box box_;
-  // At the last rebuild: centres, forms and inscribed radii.
+  // At the last rebuild: centres, forms and inscribed radii (in_plane_:
+  // the in-plane ones of a 2D box's particles, all in its plane).
   std::vector<double> centre_[3], q_[6], inscribed_;
+  bool in_plane_ = false;
   // The listed pairs (i < j) and the lambda each had at its last solve.
   std::vector<std::uint32_t> first_, second_;
   std::vector<double> lambda_;

@@ -44,14 +44,24 @@ double in_plane_inscribed(const double q[6], double inscribed) {
   return safe > inscribed * inscribed ? std::sqrt(safe) : inscribed;
 }
 
+// Particle i lies in the z = 0 plane: its centre there and its form with no
+// x-z or y-z term (exactly: the in-plane bound holds for these only).
+bool in_plane(const ParticleStore& particles, std::size_t i) {
+  return particles.centre(2)[i] == 0 && particles.q(2)[i] == 0 && particles.q(4)[i] == 0;
+}
+
 }  // namespace
 
 SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(options) {
   if (!(options.cutoff >= 1) || !std::isfinite(options.cutoff))
     throw std::invalid_argument("SkinNeighborList: the cutoff must be >= 1 and finite, got " +
                                 std::to_string(options.cutoff));
-  if (!(options.skin > 0) || !std::isfinite(options.cutoff + options.skin))
+  if (!(options.skin > 0) || !std::isfinite(options.skin))
     throw std::invalid_argument("SkinNeighborList: the skin must be positive and finite, got " +
+                                std::to_string(options.skin));
+  if (!std::isfinite(options.cutoff + options.skin))
+    throw std::invalid_argument("SkinNeighborList: cutoff + skin must be finite, got " +
+                                std::to_string(options.cutoff) + " + " +
                                 std::to_string(options.skin));
 }
 
@@ -63,6 +73,9 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
   const int threads = options_.threads > 0 ? options_.threads : omp_get_max_threads();
   const double cutoff = options_.cutoff;
   const screen::BoxGeometry geometry(box);
+  // (A kept list is checked as a rebuild's screen checks the store: an unset
+  // particle, Q = 0, would otherwise pass as one that never moved.)
+  particles.require_set("SkinNeighborList::update");
   // The largest m_i since the last rebuild (infinite when there is none to
   // compare with).
   double largest = std::numeric_limits<double>::infinity();
@@ -80,7 +93,9 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
                                          2 * (dq[1] * dq[1] + dq[2] * dq[2] + dq[4] * dq[4]));
       const double moved = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
       const double m = (moved + cutoff * frobenius / (2 * inscribed_[i])) / inscribed_[i];
-      largest = std::max(largest, std::isnan(m) ? std::numeric_limits<double>::infinity() : m);
+      const bool bound_holds = !in_plane_ || in_plane(particles, i);
+      largest = std::max(
+          largest, std::isnan(m) || !bound_holds ? std::numeric_limits<double>::infinity() : m);
     }
   }
   report.largest_move = largest;
@@ -96,7 +111,9 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
     for (int k = 0; k < 6; ++k) q_[k] = particles.q(k);
     inscribed_ = particles.inscribed_radius();
-    if (box.two_dimensional)
+    in_plane_ = box.two_dimensional;
+    for (std::size_t i = 0; i < n && in_plane_; ++i) in_plane_ = in_plane(particles, i);
+    if (in_plane_)
       for (std::size_t i = 0; i < n; ++i) {
         const double q[6] = {q_[0][i], q_[1][i], q_[2][i], q_[3][i], q_[4][i], q_[5][i]};
         inscribed_[i] = in_plane_inscribed(q, inscribed_[i]);
