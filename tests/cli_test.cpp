@@ -1089,6 +1089,31 @@ TEST_F(cli, ScreenWritesTheCountsBackAsAGsdFrame) {
     ASSERT_EQ(std::system(command.c_str()), 0);
     EXPECT_EQ(read_file("log.txt"), result.out);
   }
+  // Chunk names of 64 characters and more, as HOOMD-blue logs its
+  // quantities (file layer 2.0 has no limit): copied into the written frame.
+  // Was: refused, after the pairs had gone to standard output.
+  write_file("long.py",
+             "import gsd.hoomd, numpy as np, sys\n"
+             "key = 'md/compute/ThermodynamicQuantities/translational_kinetic_energy'\n"
+             "if sys.argv[1] == 'write':\n"
+             "    s = gsd.hoomd.Snapshot(); s.particles.N = 2\n"
+             "    s.configuration.box = [10, 10, 10, 0, 0, 0]\n"
+             "    s.particles.type_shapes = [{'type': 'Sphere', 'diameter': 1.0}]\n"
+             "    s.particles.position = [[0, 0, 0], [0.5, 0, 0]]\n"
+             "    s.log[key] = np.array([1.5])\n"
+             "    with gsd.hoomd.open('long.gsd', 'wb') as t: t.append(s)\n"
+             "else:\n"
+             "    with gsd.hoomd.open('long_out.gsd', 'rb') as t:\n"
+             "        f = t.read_frame(0)\n"
+             "        print(f.log[key][0], f.log['particles/overlaps'].tolist())\n");
+  if (std::system("/usr/bin/python3 -c 'import gsd.hoomd' 2>/dev/null") == 0) {
+    const std::string in_dir = "cd " + quoted(path(".")) + " && /usr/bin/python3 long.py ";
+    ASSERT_EQ(std::system((in_dir + "write").c_str()), 0);
+    const Outcome long_names = run("screen --outputs counts --write-gsd long_out.gsd long.gsd");
+    ASSERT_EQ(long_names.exit_status, 0) << long_names.err;
+    ASSERT_EQ(std::system((in_dir + "read > long.txt").c_str()), 0);
+    EXPECT_EQ(read_file("long.txt"), "1.5 [1, 1]\n");
+  }
   // A failed run writes neither output.
   std::ifstream in(gsd, std::ios::binary);
   const std::string bytes(std::istreambuf_iterator<char>(in), {});
@@ -1328,6 +1353,7 @@ TEST_F(cli, ContactStreamsItsInputInBoundedMemory) {
 }
 
 TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
+  std::vector<std::string> near_pairs;
   for (const char* name : {"mc.gsd", "mc.txt"}) {
     const Outcome mc = run(std::string("mc --n 64 --packing 0.3 --seed 2 -o ") + name);
     ASSERT_EQ(mc.exit_status, 0) << mc.err;
@@ -1348,7 +1374,19 @@ TEST_F(cli, McReachesItsPackingFractionAndWritesScenesWithNoOverlap) {
     EXPECT_TRUE(contains(screen.err, "64 ellipsoids")) << screen.err;
     const Outcome near = run("screen --cutoff 1.05 " + box + name);
     EXPECT_NE(near.out, "") << name << ": compressed to contact, some pairs are near";
+    near_pairs.push_back(near.out);
   }
+  // The GSD file's centres lie in its box as the hoomd schema centres it,
+  // [-L/2, L/2) (HOOMD-blue refuses particles outside); the text file's are
+  // as the sweeps left them, the same scene: the same near pairs.
+  EXPECT_EQ(near_pairs[0], near_pairs[1]);
+  const pwcontact::Scene written = pwcontact::read_gsd(path("mc.gsd"));
+  for (std::size_t i = 0; i < written.particles.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double half = written.box.length[std::size_t(k)] / 2;
+      EXPECT_GE(written.particles.centre(k)[i], -half) << i;
+      EXPECT_LT(written.particles.centre(k)[i], half) << i;
+    }
   // Falling short: exit status 3, nothing written.
   const Outcome short_of = run("mc --n 216 --packing 0.6 --sweeps 3 -o short.gsd");
   EXPECT_EQ(short_of.exit_status, 3) << short_of.err;

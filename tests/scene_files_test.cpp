@@ -471,7 +471,7 @@ TEST_F(GsdWritten, ChunksWithRowsThatDoNotFitTheFrameAreRefusedNamingThem) {
 TEST_F(GsdWritten, AHugeParticleCountIsCheckedAgainstTheChunksBeforeAnythingIsAllocated) {
   // particles/N = 2^31 - 1 with chunks of 4 rows: refused naming the chunk
   // (not 3 N doubles of positions allocated first, 51 GB).
-  auto huge = [&](const std::string& name, bool with_position) {
+  auto huge = [&](const std::string& name, bool with_position, bool with_typeid = true) {
     std::ofstream out(directory_ / name, std::ios::binary);
     pwcontact::GsdWriter writer(out);
     writer.write("particles/N", std::vector<std::uint32_t>{0x7fffffffu}, 1);
@@ -479,7 +479,7 @@ TEST_F(GsdWritten, AHugeParticleCountIsCheckedAgainstTheChunksBeforeAnythingIsAl
     writer.write("particles/type_shapes",
                  std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})"});
     if (with_position) writer.write("particles/position", std::vector<float>(12, 0.0f), 4);
-    writer.write("particles/typeid", std::vector<std::uint32_t>(4, 0), 4);
+    if (with_typeid) writer.write("particles/typeid", std::vector<std::uint32_t>(4, 0), 4);
     writer.end_frame();
     writer.finish();
     return (directory_ / name).string();
@@ -494,6 +494,12 @@ TEST_F(GsdWritten, AHugeParticleCountIsCheckedAgainstTheChunksBeforeAnythingIsAl
   EXPECT_NE(typeid_message.find("chunk particles/typeid of frame 0 is 4x1, expected 2147483647x1"),
             std::string::npos)
       << typeid_message;
+  // No per-particle chunk at all: the schema's defaults would put 2^31 - 1
+  // particles at the origin, and their arrays exhausted memory. Refused.
+  const std::string bare = huge("bare.gsd", false, false);
+  const std::string bare_message = message_of([&] { pwcontact::read_gsd(bare); });
+  EXPECT_NE(bare_message.find("2147483647 particles but no particles/position"), std::string::npos)
+      << bare_message;
 }
 
 TEST_F(GsdWritten, AChunkOfStringsWithRowsOfNoCharactersIsRefused) {

@@ -227,7 +227,10 @@ def _iterations(iterations) -> Union[str, int]:
         return "auto"
     if isinstance(iterations, (bool, np.bool_)) or not isinstance(iterations, numbers.Integral):
         raise ValueError(f"iterations must be 'auto' or an integer, got {iterations!r}")
-    return int(iterations)
+    i = int(iterations)
+    if not -2**31 <= i < 2**31:  # (the core names the range 1 .. 40; beyond an int, say it here)
+        raise ValueError(f"iterations must be 'auto' or an integer 1 .. 40, got {i}")
+    return i
 
 
 def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
@@ -252,7 +255,10 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     out: optional dict of arrays to write into, reused across calls:
     "mu2", "lambda" (of the result's dtype) and "status" (uint8), each
     C-contiguous of shape (N,); "lambda" only when it is among the outputs
-    (ValueError for another key, or "lambda" not asked for).
+    (ValueError for another key, or "lambda" not asked for). An input that
+    shares memory with an out array is copied first (lambda_start may be
+    out["lambda"] itself: a warm start in place); out arrays that overlap
+    one another are refused (ValueError).
 
     Layout and cost: every layout is read in place. Arrays whose columns
     are contiguous (a Fortran-ordered (N, 3) array, or ``a.T`` of a
@@ -263,7 +269,7 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
 
     Returns a ContactResult. Raises ValueError for shapes and option values.
     """
-    names = list(outputs)
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
     for name in names:
         if name not in _OUTPUTS:
             raise ValueError(f"unknown output {name!r} (outputs: {', '.join(_OUTPUTS)})")
@@ -276,12 +282,43 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
         if "lambda" in out and "lambda" not in names:
             raise ValueError("out['lambda'] is given but 'lambda' is not among the outputs: it would "
                              "not be written")
+        r12, q1, q2, lambda_start = _apart_from_out(out, r12, q1, q2, lambda_start)
     raw = _core.contact_function(r12, q1, q2, names, precision, _iterations(iterations), accuracy,
                                  _threads(threads), isa, lambda_start, out)
     report = raw.pop("report")
     if "mu2" not in names:
         raw.pop("mu2", None)
     return ContactResult(raw, report)
+
+
+def _apart_from_out(out: dict, r12, q1, q2, lambda_start):
+    """The inputs, each copied where an out array shares its memory (as numpy's
+    ufuncs do: written while it is read, it gave wrong answers with valid
+    statuses); lambda_start may be out['lambda'] itself (a warm start in
+    place: each pair reads its own start before it writes its lambda). Out
+    arrays that overlap one another are refused (ValueError)."""
+    arrays = [(key, a) for key, a in out.items() if isinstance(a, np.ndarray)]
+    for k, (key, a) in enumerate(arrays):
+        for other, b in arrays[k + 1:]:
+            if np.may_share_memory(a, b):
+                raise ValueError(f"out[{key!r}] and out[{other!r}] share memory: give separate arrays")
+
+    def apart(x, allowed=None):
+        for key, a in arrays:
+            if a is allowed or (isinstance(allowed, np.ndarray) and isinstance(x, np.ndarray)
+                                and a.__array_interface__ == x.__array_interface__ and key == "lambda"):
+                continue
+            if np.may_share_memory(a, x):
+                return np.array(x, copy=True)
+        return x
+
+    lam = out.get("lambda")
+    same_lambda = (isinstance(lam, np.ndarray) and isinstance(lambda_start, np.ndarray)
+                   and lam.__array_interface__ == lambda_start.__array_interface__)
+    start = lambda_start
+    if start is not None:
+        start = apart(start, lam if same_lambda else None)
+    return apart(r12), apart(q1), apart(q2), start
 
 
 def overlap(r12, q1, q2, cutoff: float = 1.0, *, precision: str = "auto",
@@ -301,14 +338,18 @@ def quadratic_form(semi_axes, orientation) -> np.ndarray:
     orientation (N, 4) or (4,) unit quaternions (w, x, y, z), as HOOMD-blue
     and GSD give them (normalised when not unit; zero raises ValueError).
     Returns (N, 6) float64."""
-    return _core.quadratic_form(semi_axes, orientation)
+    q = _core.quadratic_form(semi_axes, orientation)
+    bad = np.flatnonzero(~np.all(np.isfinite(np.atleast_2d(q)), axis=1))
+    if len(bad):
+        raise ValueError(f"the form of row {bad[0]} is not finite (semi-axes squared overflow)")
+    return q
 
 
 def sphere(radius: float) -> np.ndarray:
     """Q of a sphere of the given radius (6,)."""
     r = float(radius)
-    if not (r > 0 and math.isfinite(r)):
-        raise ValueError(f"radius must be positive and finite, got {radius!r}")
+    if not (r > 0 and math.isfinite(r * r)):
+        raise ValueError(f"radius must be positive and its square finite, got {radius!r}")
     return np.array([r * r, 0, 0, r * r, 0, r * r])
 
 
@@ -320,8 +361,9 @@ def spheroid(a: float, c: float, axis=(0.0, 0.0, 1.0)) -> np.ndarray:
     if not (norm > 0 and np.isfinite(norm)):
         raise ValueError(f"axis must be non-zero and finite, got {axis!r}")
     for name, v in (("a", a), ("c", c)):
-        if not (float(v) > 0 and math.isfinite(float(v))):
-            raise ValueError(f"{name} must be positive and finite, got {v!r}")
+        if not (float(v) > 0 and math.isfinite(float(v) ** 2)):
+            raise ValueError(f"{name} must be positive and its square finite, got {v!r}")
+    a, c = float(a), float(c)  # (numpy integers would square in their own type, and wrap)
     n = n / norm
     m = a * a * np.eye(3) + (c * c - a * a) * np.outer(n, n)
     return np.array([m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2], m[2, 2]])
@@ -368,6 +410,9 @@ class Box:
             return box
         if isinstance(box, Mapping):
             get = box.get
+            missing = [k for k in ("Lx", "Ly") if get(k) is None]
+            if missing:
+                raise ValueError(f"a box dict needs Lx and Ly (and Lz, xy, xz, yz), it lacks {missing[0]}")
             two_d = bool(get("is2D", False)) or get("dimensions", dimensions) == 2 or float(get("Lz", 0)) == 0
             return cls(get("Lx"), get("Ly"), get("Lz", 0), get("xy", 0), get("xz", 0), get("yz", 0), is2D=two_d)
         if all(hasattr(box, k) for k in ("Lx", "Ly", "Lz")):
@@ -394,6 +439,10 @@ class Box:
     def wrap_vectors(self, d) -> np.ndarray:
         """Minimum images of separation vectors (N, 3) (unchanged in an open box)."""
         d = np.array(d, dtype=float, copy=True)
+        if d.ndim == 1 and d.shape == (3,):
+            return self.wrap_vectors(d[None])[0]
+        if d.ndim != 2 or d.shape[1] != 3:
+            raise ValueError(f"separation vectors must have shape (N, 3) or (3,), got {d.shape}")
         if not self.periodic:
             return d
         m = self.matrix
@@ -438,7 +487,9 @@ class ScreenResult:
         self.counts = raw["counts"]
         self.offsets = raw["offsets"]
         self.report = raw["report"]
-        self._positions = positions
+        # (A copy: the caller's array may change in place afterwards, as a
+        # SkinNeighborList loop's does, and this result's vectors must not.)
+        self._positions = np.array(positions, dtype=float, copy=True)
         self._box = box
 
     def __len__(self) -> int:
@@ -494,9 +545,10 @@ def _typeid_array(typeid) -> np.ndarray:
     """Type ids: integers (not floats, which would be truncated), none negative."""
     t = _integer_array(typeid, "typeid")
     if t.ndim == 1:
-        negative = np.flatnonzero(t < 0)
-        if len(negative):
-            raise ValueError(f"typeid of particle {negative[0]} is {t[negative[0]]}: not a type")
+        # (Beyond 2**32 - 1 the core's 32-bit type would wrap it to another type.)
+        bad = np.flatnonzero((t < 0) | (t > 2**32 - 1))
+        if len(bad):
+            raise ValueError(f"typeid of particle {bad[0]} is {t[bad[0]]}: not a type")
     return t
 
 
@@ -814,6 +866,7 @@ class SkinNeighborList:
 
 
 def _gsd_frame(trajectory, frame: int):
+    frame = _integer(frame, "frame")
     n = len(trajectory)
     if n == 0:
         raise ValueError("the GSD file has no frames")
@@ -858,13 +911,20 @@ def read_gsd(path: str, frame: int = -1) -> dict:
         for t, name in enumerate(types):
             shape = shapes[t] if t < len(shapes) else {}
             kind = shape.get("type") if isinstance(shape, Mapping) else None
+            def number(key):
+                # (A number, as the C++ reader takes it: not a string, not absent.)
+                v = shape.get(key)
+                if isinstance(v, (bool, str)) or not isinstance(v, numbers.Real):
+                    raise ValueError(f"{path}: frame {index}: the {kind} shape of type {name!r} needs "
+                                     f"a number {key!r} in particles/type_shapes (got {shape!r})")
+                return float(v)
             if kind == "Ellipsoid" or (kind == "Ellipse" and dimensions == 2):
-                a, b = float(shape["a"]), float(shape["b"])
+                a, b = number("a"), number("b")
                 # (In 2D the third semi-axis does not change mu: min(a, b), as the C++ reader.)
-                c = min(a, b) if dimensions == 2 else float(shape["c"])
+                c = min(a, b) if dimensions == 2 else number("c")
                 axes.append([a, b, c])
             elif kind == "Sphere":
-                r = float(shape["diameter"]) / 2
+                r = number("diameter") / 2
                 axes.append([r, r, r])
             else:
                 raise ValueError(f"{path}: frame {index}: type {name!r} has no Ellipsoid or Sphere shape "
@@ -940,14 +1000,14 @@ def _max_aspect(max_aspect) -> float:
 def spheroid_scene(n: int, seed: int = 1, packing: float = 0.3, max_aspect: float = 3.0) -> dict:
     """The demo scene: n random spheroids (aspect 1/max_aspect .. max_aspect,
     volume of a sphere of radius 0.5) in a periodic cube at the packing
-    fraction, as the keyword arguments of screen. n >= 1 and seed >= 0
-    integers; packing in (0, 1) (total spheroid volume over box volume, as
+    fraction, as the keyword arguments of screen. n in 1 .. 2**31 - 1 and
+    seed >= 0 integers; packing in (0, 1) (total spheroid volume over box volume, as
     ``pwcontact demo --packing``); max_aspect in 1 .. 1e6 (ValueError naming
     the argument otherwise)."""
     p = float(packing)
     if not 0 < p < 1:
         raise ValueError(f"packing must be in (0, 1), got {packing!r}")
-    raw = _core.spheroid_scene(_integer(n, "n", 1), _integer(seed, "seed", 0, _UINT64_MAX), p,
+    raw = _core.spheroid_scene(_integer(n, "n", 1, 2**31 - 1), _integer(seed, "seed", 0, _UINT64_MAX), p,
                                _max_aspect(max_aspect))
     return {"positions": raw["positions"], "orientations": raw["orientations"],
             "semi_axes": raw["semi_axes"], "box": _box_of(raw["box"])}

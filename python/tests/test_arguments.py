@@ -129,6 +129,9 @@ def test_indices_and_type_ids_must_be_integers():
             build(positions, type_semi_axes=types, typeid=np.full(n, 0.9), box=pw.Box.cube(20))
         with pytest.raises(ValueError, match="typeid of particle 2 is -1"):
             build(positions, type_semi_axes=types, typeid=[0, 1, -1], box=pw.Box.cube(20))
+        # Beyond 2**32 - 1 the core's 32-bit type ids would wrap to type 0 or 1.
+        with pytest.raises(ValueError, match="typeid of particle 1 is 4294967296"):
+            build(positions, type_semi_axes=types, typeid=np.array([0, 2**32, 1]), box=pw.Box.cube(20))
     typed = pw.MovingScene(positions, type_semi_axes=types, typeid=[0, 1, 1], box=pw.Box.cube(20))
     for typeid in (-1, 0.9, True, "0"):
         with pytest.raises(ValueError, match="typeid"):
@@ -325,3 +328,15 @@ def test_dilute_spheroids_takes_the_command_lines_sixteen_shapes():
     assert len({tuple(a) for a in np.round(mixed.scene()["semi_axes"], 12)}) > 16
     with pytest.raises(ValueError, match="shapes"):
         pw.HardParticleMC.dilute_spheroids(100, shapes=-1)
+
+
+def test_arguments_beyond_their_types_are_value_errors_naming_them(tmp_path):
+    q = pw.sphere(1.0)
+    with pytest.raises(ValueError, match="iterations must be 'auto' or an integer 1 .. 40"):
+        pw.contact_function([0, 0, 3.0], q, q, iterations=2**64)
+    with pytest.raises(ValueError, match="n must be"):
+        pw.spheroid_scene(2**64)
+    with pytest.raises(ValueError, match="lacks Ly"):
+        pw.Box.from_box({"Lx": 3})
+    # One separation vector (3,) is wrapped as one.
+    np.testing.assert_allclose(pw.Box.cube(10).wrap_vectors([9.0, 0, 0]), [-1.0, 0, 0])

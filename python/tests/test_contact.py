@@ -268,3 +268,65 @@ def test_column_major_inputs_are_read_in_place_with_the_same_answers(reference_p
                                   np.asfortranarray(q2), threads=2)
     assert np.array_equal(rows.mu2, columns.mu2) and np.array_equal(rows.lambda_, columns.lambda_)
     assert np.array_equal(rows.status, columns.status)
+
+
+def test_out_arrays_that_share_memory_with_the_inputs_give_the_oracles_answers(reference_pairs):
+    # An out array that is a column of an input (written while the kernels
+    # read it): the inputs are copied first, as numpy's ufuncs do. Was: mu2
+    # off by a factor of 30 with valid statuses.
+    r12, q1, q2, mu2, lam = reference_pairs["random"]
+    rf = np.asfortranarray(r12)
+    r = pw.contact_function(rf, q1, q2, out={"mu2": rf[:, 0]})
+    assert np.all(pw.is_valid(r.status))
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) <= 1e-13
+    qf = np.asfortranarray(q1)
+    r = pw.contact_function(r12, qf, q2, out={"lambda": qf[:, 0]})
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) <= 1e-13
+    assert np.max(np.abs(r.lambda_ - lam)) <= 1e-13
+    # A warm start in place (lambda_start is out['lambda']) is allowed and
+    # right; a shifted view of it is copied first.
+    start = lam.copy()
+    r = pw.contact_function(r12, q1, q2, lambda_start=start, out={"lambda": start})
+    assert np.max(np.abs(start - lam)) <= 1e-13
+    buffer = np.concatenate([lam, [0.5]])
+    r = pw.contact_function(r12, q1, q2, lambda_start=buffer[1:], out={"lambda": buffer[:-1]})
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) <= 1e-13
+    # Out arrays that overlap one another cannot both be written.
+    both = np.empty(len(mu2))
+    with pytest.raises(ValueError, match="share memory"):
+        pw.contact_function(r12, q1, q2, out={"mu2": both, "lambda": both})
+
+
+@pytest.mark.parametrize("dtype", [">f4", np.dtype("f4", metadata={"units": "nm"})])
+def test_float32_of_any_byte_order_or_metadata_is_solved_as_float32(reference_pairs, dtype):
+    r12, q1, q2, mu2, _ = reference_pairs["random"]
+    r = pw.contact_function(r12.astype(dtype), q1.astype(dtype), q2.astype(dtype))
+    assert r.precision == "float" and r.mu2.dtype == np.float32
+    assert np.max(np.abs(r.mu2 - mu2) / mu2) < 1e-5
+    # An out array of float64 with metadata is float64.
+    out = np.empty(len(mu2), dtype=np.dtype("f8", metadata={"units": "nm"}))
+    pw.contact_function(r12, q1, q2, out={"mu2": out})
+    assert np.max(np.abs(out - mu2) / mu2) <= 1e-13
+
+
+def test_complex_and_string_inputs_are_refused_naming_them():
+    q = pw.sphere(1.0)
+    with pytest.raises(ValueError, match="r12 must be an array of real numbers"):
+        pw.contact_function(np.array([[0, 0, 1.5 + 5j]]), q, q)
+    with pytest.raises(ValueError, match="q1 must be an array of real numbers"):
+        pw.contact_function([0, 0, 1.5], np.array(["1", "0", "0", "1", "0", "1"]), q)
+
+
+def test_forms_from_numpy_integers_and_huge_radii():
+    # Squared in float, not in the caller's integer type (which wrapped).
+    assert pw.spheroid(np.int32(100000), 1)[0] == 1e10
+    assert pw.spheroid(np.int64(2**32), 1)[0] == 2.0**64
+    with pytest.raises(ValueError, match="square finite"):
+        pw.sphere(1e200)
+    with pytest.raises(ValueError, match="not finite"):
+        pw.quadratic_form([1e200, 1, 1], [1, 0, 0, 0])
+
+
+def test_outputs_may_be_one_name():
+    r = pw.contact_function([0, 0, 3.0], pw.sphere(1), pw.sphere(1), outputs="mu2")
+    assert r.mu2[0] == pytest.approx(2.25)

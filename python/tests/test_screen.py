@@ -158,6 +158,26 @@ def test_read_gsd_names_what_is_wrong(tmp_path):
         pw.read_gsd(str(path))
     with pytest.raises(ValueError, match="frame 3"):
         pw.read_gsd(str(path), frame=3)
+    # The frame an integer (a bool was read as frame 1, a float raised an
+    # empty TypeError); numpy integers taken.
+    for frame_of_wrong_type in (True, 0.0):
+        with pytest.raises(ValueError, match="frame must be an integer"):
+            pw.read_gsd(str(path), frame=frame_of_wrong_type)
+    # A shape without the number it needs names it (was: KeyError 'c').
+    frame.particles.type_shapes = [{"type": "Ellipsoid", "a": 1.0, "b": 1.0}]
+    with gsd_hoomd.open(str(path), "wb") as f:
+        f.append(frame)
+    with pytest.raises(ValueError, match="needs a number 'c'"):
+        pw.read_gsd(str(path), frame=np.int64(0))
+
+
+def test_a_screen_result_keeps_the_positions_it_was_made_from():
+    # The caller's array changed in place afterwards (as a SkinNeighborList
+    # loop's is): the result's vectors are those of its own step.
+    positions = np.array([[0.0, 0, 0], [1.5, 0, 0]])
+    res = pw.screen(positions, semi_axes=[1.0, 1, 1], cutoff=1.0, box=pw.Box.cube(10))
+    positions[1, 0] = 1.8
+    np.testing.assert_allclose(res.to_freud_arrays()["vectors"], [[1.5, 0, 0], [-1.5, 0, 0]])
 
 
 def test_threads_do_not_change_the_pairs():

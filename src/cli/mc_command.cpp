@@ -50,8 +50,10 @@ OptionParser mc_parser(McOptions& options) {
       "sweeps of batched trial queries in scenes of many cells (the same result for every "
       "thread count), one trial at a time in small ones. Standard error shows the progress, "
       "the step sizes and the acceptance rate; the final scene goes to -o FILE: GSD (.gsd: "
-      "the hoomd schema, float64 positions, orientations and box so that no near contact "
-      "is rounded into an overlap; types A0 .. A15 with their Ellipsoid shapes) or text "
+      "the hoomd schema, centres wrapped into the box centred on the origin, float64 "
+      "positions, orientations and box so that no near contact is rounded into an overlap "
+      "(HOOMD-blue's own reader takes float32 only); types A0 .. A15 with their Ellipsoid shapes) "
+      "or text "
       "(any other name: 'pwcontact screen --format axes' lines, x y z a b c qw qx qy qz, "
       "with the box in a comment line and the command that reads it back).");
   parser.add_value({"--n"}, "N", "500", "number of spheroids", [&options](std::string_view value) {
@@ -113,12 +115,20 @@ void write_gsd(const HardParticleMC& mc, OutputFile& out) {
                   axes[1], axes[2]);
     shapes[t] = json;
   }
+  // The centres wrapped into the box as the hoomd schema places it, centred
+  // on the origin: [-L/2, L/2) along each axis (the sweeps leave them
+  // anywhere; HOOMD-blue refuses particles outside its box). The Monte Carlo
+  // box is a cube.
+  const Box& box = mc.box();
   std::vector<double> position(3 * n), orientation(4 * n);
   for (std::size_t i = 0; i < n; ++i) {
-    for (int k = 0; k < 3; ++k) position[3 * i + k] = s.centre(k)[i];
+    for (int k = 0; k < 3; ++k) {
+      const double x = s.centre(k)[i], length = box.length[std::size_t(k)];
+      const double wrapped = x - length * std::floor(x / length + 0.5);
+      position[3 * i + k] = wrapped < length / 2 ? wrapped : wrapped - length;
+    }
     for (int k = 0; k < 4; ++k) orientation[4 * i + k] = mc.orientation()[i][k];
   }
-  const Box& box = mc.box();
   std::ostringstream frame(std::ios::binary);
   GsdWriter writer(frame);
   writer.write("configuration/step", std::vector<std::uint64_t>{mc.sweeps()}, 1);

@@ -63,6 +63,15 @@ std::string shape_text(const py::array& a) {
 
 template <class T>
 Rows<T> rows_of(const py::handle& object, int k, const char* name) {
+  // Complex numbers, strings, dates: not numbers a cast may take (a complex
+  // one would lose its imaginary part, a string be parsed).
+  if (py::isinstance<py::array>(object)) {
+    const char kind = py::reinterpret_borrow<py::array>(object).dtype().kind();
+    if (kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b' && kind != 'O')
+      throw py::value_error(
+          std::string(name) + " must be an array of real numbers, got dtype " +
+          std::string(py::str(py::reinterpret_borrow<py::array>(object).dtype())));
+  }
   auto a = py::array_t<T, py::array::forcecast>::ensure(object);
   if (!a) throw py::value_error(std::string(name) + " must be an array of numbers");
   // Strides the batch calls cannot read in place (not whole numbers, or
@@ -206,7 +215,7 @@ py::array_t<T> output_array(const py::object& out, const char* key, std::size_t 
   const std::string what = std::string("out['") + key + "']";
   if (!py::isinstance<py::array>(given)) throw py::value_error(what + " must be a numpy array");
   const py::array a = py::reinterpret_borrow<py::array>(given);
-  if (!a.dtype().is(py::dtype::of<T>()))
+  if (!a.dtype().equal(py::dtype::of<T>()))  // (a dtype with metadata is equal, not the same)
     throw py::value_error(what + " must have dtype " + std::string(py::str(py::dtype::of<T>())) +
                           ", got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 1 || std::size_t(a.shape(0)) != n)
@@ -318,9 +327,12 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
   return result;
 }
 
+// Any float32 array: of either byte order, or with metadata (rows_of reads
+// it as native float32).
 bool is_float32(const py::handle& object) {
-  return py::isinstance<py::array>(object) &&
-         py::reinterpret_borrow<py::array>(object).dtype().is(py::dtype::of<float>());
+  if (!py::isinstance<py::array>(object)) return false;
+  const py::dtype d = py::reinterpret_borrow<py::array>(object).dtype();
+  return d.kind() == 'f' && d.itemsize() == 4;
 }
 
 py::dict contact_function(const py::object& r12, const py::object& q1, const py::object& q2,

@@ -280,6 +280,14 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   if (position_entry) file.check_shape(*position_entry, "particles/position", n, 3);
   if (orientation_entry) file.check_shape(*orientation_entry, "particles/orientation", n, 4);
   if (type_id_entry) file.check_shape(*type_id_entry, "particles/typeid", n, 1);
+  // (The schema's default puts every particle at the origin: of a frame of
+  // many particles, a file that gives no positions, and an N that nothing
+  // bounds, which N x 3 zeros of up to 2^31 particles would exhaust memory
+  // for.)
+  if (!position_entry && n > 1)
+    file.malformed(where + ": " + std::to_string(n) +
+                   " particles but no particles/position (in this frame or frame 0): every "
+                   "particle would sit at the origin");
   scene.type_names = {"A"};
   if (const IndexEntry* e = file.find(f, "particles/types") ? file.find(f, "particles/types")
                                                             : file.find(0, "particles/types"))

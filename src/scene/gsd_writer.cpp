@@ -44,9 +44,11 @@ GsdWriter::GsdWriter(std::ostream& out) : out_(out) {
 void GsdWriter::write_raw(const std::string& name, std::uint8_t type, std::uint64_t rows,
                           std::uint64_t count, const void* data) {
   if (finished_) throw std::invalid_argument("GsdWriter: " + name + " written after finish()");
-  if (name.empty() || name.size() >= name_segment)
-    throw std::invalid_argument("GsdWriter: a chunk name must have 1 to 63 characters, not '" +
-                                name + "'");
+  // (File layer 2.0 keeps the names one after the other, each ended by a
+  // zero byte: any length; HOOMD-blue's logged quantities take 64 and more.)
+  if (name.empty() || name.find('\0') != std::string::npos)
+    throw std::invalid_argument("GsdWriter: a chunk name must be non-empty text, not '" + name +
+                                "'");
   if (rows == 0 || count % rows != 0 || count / rows > 0xffffffffu)
     throw std::invalid_argument("GsdWriter: " + name + ": " + std::to_string(count) +
                                 " values are not " + std::to_string(rows) + " rows");
