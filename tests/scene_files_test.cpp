@@ -744,6 +744,17 @@ TEST(SceneFiles, MalformedLammpsDumpsNameTheirLine) {
   const std::string huge = message("huge.dump", frame("1000000000000000000", {"1 1", "2 5"}));
   EXPECT_NE(huge.find("the frame ends after 2 of its 1000000000000000000 atoms"), std::string::npos)
       << huge;
+  // Scaled coordinates mapped as positions: refused (read as lengths, they
+  // put every particle within a unit of the origin; was: 2849 false pairs).
+  std::string scaled = good;
+  scaled.replace(scaled.find("x y z"), 5, "xs ys zs");
+  std::ofstream(dir / "scaled.dump") << scaled;
+  pwcontact::LammpsColumns columns;
+  for (int k = 0; k < 3; ++k) columns.position[k] = std::string(1, char('x' + k)) + "s";
+  const std::string scaled_message =
+      message_of([&] { pwcontact::read_lammps_dump((dir / "scaled.dump").string(), 0, columns); });
+  EXPECT_NE(scaled_message.find("column xs holds scaled coordinates"), std::string::npos)
+      << scaled_message;
   fs::remove_all(dir);
 }
 

@@ -193,6 +193,8 @@ def test_counts_and_seeds_must_be_non_negative_integers():
         pw.HardParticleMC(np.zeros((1, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5), seed=-1)
     with pytest.raises(ValueError, match="seed"):
         pw.HardParticleMC(np.zeros((1, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5), seed=1.5)
+    with pytest.raises(ValueError, match="lambda_start must be an array of numbers"):
+        pw.contact_function([0, 0, 3.0], q, q, lambda_start=object())
     with pytest.raises(ValueError, match="n must be"):
         pw.HardParticleMC.dilute_spheroids(-1)
     with pytest.raises(ValueError, match="seed"):

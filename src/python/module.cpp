@@ -287,9 +287,17 @@ py::dict contact_function_typed(const py::handle& r12_in, const py::handle& q1_i
   py::array_t<T> lambda_start;  // (a default array_t is an empty array, not a null one)
   const bool warm = !lambda_start_in.is_none();
   if (warm) {
-    lambda_start =
+    // (ensure() of what numpy cannot convert is a null array, which the
+    // assignment refuses with pybind11's own message: taken apart here.)
+    auto converted =
         py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(lambda_start_in);
-    if (!lambda_start || lambda_start.ndim() != 1 || std::size_t(lambda_start.shape(0)) != n)
+    if (!converted) {
+      PyErr_Clear();
+      throw py::value_error("lambda_start must be an array of numbers of shape (" +
+                            std::to_string(n) + ",)");
+    }
+    lambda_start = std::move(converted);
+    if (lambda_start.ndim() != 1 || std::size_t(lambda_start.shape(0)) != n)
       throw py::value_error("lambda_start must have shape (" + std::to_string(n) + ",)");
   }
   // mu2 is always computed (the kernels' answer); lambda and the vectors

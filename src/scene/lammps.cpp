@@ -374,6 +374,14 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
   for (int k = 0; k < 3; ++k) {
     const std::string wrapped = axes[k], unwrapped = std::string(axes[k]) + "u";
     position[k] = column(columns.position[k], {wrapped.c_str(), unwrapped.c_str()}, "a position");
+    // LAMMPS's scaled coordinates (xs, xsu, ...) are fractions of the box:
+    // read as lengths they would place every particle within a unit of the
+    // origin. Mapped explicitly, they are refused, not misread.
+    const std::string& name = names[position[k]];
+    if (name == std::string(axes[k]) + "s" || name == std::string(axes[k]) + "su")
+      lines.fail("column " + name +
+                 " holds scaled coordinates (fractions of the box), which are not read: dump " +
+                 wrapped + " or " + unwrapped + " (--columns " + wrapped + "=...)");
     const std::string usual_shape = std::string("shape") + axes[k];
     shape[k] = column(columns.shape[k], {usual_shape.c_str()}, "a shape, a diameter");
   }
