@@ -193,8 +193,6 @@ def test_counts_and_seeds_must_be_non_negative_integers():
         pw.HardParticleMC(np.zeros((1, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5), seed=-1)
     with pytest.raises(ValueError, match="seed"):
         pw.HardParticleMC(np.zeros((1, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5), seed=1.5)
-    with pytest.raises(ValueError, match="lambda_start must be an array of numbers"):
-        pw.contact_function([0, 0, 3.0], q, q, lambda_start=object())
     with pytest.raises(ValueError, match="n must be"):
         pw.HardParticleMC.dilute_spheroids(-1)
     with pytest.raises(ValueError, match="seed"):
@@ -336,6 +334,8 @@ def test_arguments_beyond_their_types_are_value_errors_naming_them(tmp_path):
     q = pw.sphere(1.0)
     with pytest.raises(ValueError, match="iterations must be 'auto' or an integer 1 .. 40"):
         pw.contact_function([0, 0, 3.0], q, q, iterations=2**64)
+    with pytest.raises(ValueError, match="lambda_start must be an array of numbers"):
+        pw.contact_function([0, 0, 3.0], q, q, lambda_start=object())
     with pytest.raises(ValueError, match="n must be"):
         pw.spheroid_scene(2**64)
     with pytest.raises(ValueError, match="lacks Ly"):
