@@ -18,7 +18,8 @@ ValueError, as do values of the wrong kind (an index, a type id, a count or
 a seed that is not an integer, or is negative; an argument that would be
 ignored); an index that does not exist raises IndexError, a file that
 cannot be opened OSError (FileNotFoundError when it does not exist). The
-GIL is released during every computation.
+GIL is released during every computation over many pairs or particles (not
+in reference(), a single pair).
 
 Everything here is documented with the library's conventions in README.md.
 """
