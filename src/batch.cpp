@@ -24,6 +24,7 @@
 #include "parallel_errors.hpp"
 #include "pwcontact/batch.hpp"
 #include "pwcontact/reference.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact {
 namespace {
@@ -44,9 +45,7 @@ BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   if (options.iterations < 0)
     throw std::invalid_argument("BatchOptions::iterations must be >= 0 (0 = automatic), got " +
                                 std::to_string(options.iterations));
-  if (options.threads < 0)
-    throw std::invalid_argument("BatchOptions::threads must be >= 0 (0 = all), got " +
-                                std::to_string(options.threads));
+  detail::thread_count(options.threads, "BatchOptions::threads");
   // Values cast from outside their enumerations: refused, not taken for a
   // default.
   auto check_enum = [](const char* name, int value, int last) {
@@ -77,7 +76,7 @@ BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
   report.formulation =
       options.formulation == Formulation::automatic ? Formulation::newton : options.formulation;
   const std::size_t chunks = (pairs + chunk_pairs - 1) / chunk_pairs;
-  const int wanted = options.threads > 0 ? options.threads : omp_get_max_threads();
+  const int wanted = detail::thread_count(options.threads, "BatchOptions::threads");
   report.threads =
       int(std::min<std::size_t>(std::size_t(wanted), std::max<std::size_t>(chunks, 1)));
   return report;

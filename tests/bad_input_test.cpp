@@ -2,9 +2,14 @@
 // their own code and NaN results, never a valid-looking answer, and they do
 // not disturb good pairs around them.
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
+#include "pwcontact/pwcontact.hpp"
 #include "test_support.hpp"
 
 namespace pwtest {
@@ -223,6 +228,65 @@ TEST(StatusText, OnlyOkAndOkFallbackAreValid) {
     EXPECT_EQ(pwcontact::is_valid(Status(s)),
               Status(s) == Status::ok || Status(s) == Status::ok_fallback)
         << pwcontact::status_name(Status(s));
+}
+
+// Thread counts: 0 (all) to 1024, as the command line and Python take them,
+// in every call that takes one; beyond, std::invalid_argument naming the
+// call (10^5 threads crashed the batched moving-scene query and the screen;
+// the moving scene's batched calls took a negative count for "all").
+TEST(ThreadCounts, BeyondZeroTo1024AreRefusedByEveryCallNamingIt) {
+  using pwcontact::Box;
+  using pwcontact::ParticleStore;
+  ParticleStore store;
+  store.add({0, 0, 0}, pwcontact::sphere(1));
+  store.add({1.5, 0, 0}, pwcontact::sphere(1));
+  const Box box = Box::periodic_box(10, 10, 10);
+  auto refused = [](const std::function<void()>& call, const char* who) {
+    try {
+      call();
+      ADD_FAILURE() << who << ": accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(who) + ": threads must be in 0 .. 1024"),
+                std::string::npos)
+          << e.what();
+    }
+  };
+  for (int threads : {-1, 1025, 100000}) {
+    pwcontact::ScreenOptions screen_options;
+    screen_options.threads = threads;
+    pwcontact::ScreenedPairs pairs;
+    refused([&] { pwcontact::screen_pairs(store, box, screen_options, pairs); }, "screen_pairs");
+    pwcontact::PairBatch<double> batch;
+    const double r[3] = {1.5, 0, 0};
+    const auto q = pwcontact::sphere(1);
+    batch.push_back(r, q.data(), q.data());
+    std::vector<double> mu2(1);
+    std::vector<Status> status(1);
+    BatchOptions batch_options;
+    batch_options.threads = threads;
+    refused(
+        [&] {
+          pwcontact::contact_function_batch(batch.view(), {mu2.data(), nullptr, status.data()},
+                                            batch_options);
+        },
+        "BatchOptions::threads");
+    pwcontact::MovingScene scene(store, box);
+    const pwcontact::MovingScene::Particle trial = scene.trial({5, 5, 5}, q);
+    const std::int64_t exclude = pwcontact::MovingScene::none;
+    std::int64_t hit = 0;
+    refused([&] { scene.overlaps(&trial, &exclude, 1, &hit, threads); }, "MovingScene::overlaps");
+    const std::uint32_t index = 0;
+    refused([&] { scene.move_many(&index, &trial, 1, threads); }, "MovingScene::move_many");
+    EXPECT_EQ(scene.particles().centre(0)[0], 0) << "the scene unchanged";
+    pwcontact::SkinOptions skin_options;
+    skin_options.threads = threads;
+    pwcontact::SkinNeighborList list(skin_options);
+    refused([&] { list.update(store, box, pairs); }, "SkinNeighborList");
+    pwcontact::HardParticleMCOptions mc_options;
+    mc_options.threads = threads;
+    refused([&] { pwcontact::HardParticleMC::dilute_spheroids(8, 1, 2, mc_options); },
+            "HardParticleMC");
+  }
 }
 
 }  // namespace

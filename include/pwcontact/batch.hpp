@@ -184,7 +184,7 @@ struct BatchOptions {
   // reference path. Fixed N: every lane runs exactly N evaluations, then the
   // check, then the reference path for those that fail it.
   int iterations = automatic_iterations;
-  int threads = 0;           // OpenMP threads; 0: omp_get_max_threads()
+  int threads = 0;           // OpenMP threads, 0 .. 1024; 0: omp_get_max_threads()
   Isa isa = Isa::automatic;  // see resolve_isa
   Precision precision = Precision::automatic;
   Accuracy accuracy = Accuracy::standard;

@@ -42,7 +42,7 @@ struct HardParticleMCOptions {
   double rotation = 0.1;     // the largest turn, a (radians)
   bool adapt_steps = true;   // d and a scaled after each sweep towards 30 % acceptance
   std::uint64_t seed = 1;
-  int threads = 0;     // 0: omp_get_max_threads()
+  int threads = 0;     // 0 .. 1024; 0: omp_get_max_threads()
   BatchOptions batch;  // precision and instruction set of the overlap kernels
 };
 

@@ -123,7 +123,7 @@ class MovingScene {
   // for k < count (exclude may be null: none), identical to the single
   // queries whatever the thread count; the undecided pairs of all trials
   // share the SIMD lanes, the trials are spread over `threads` OpenMP threads
-  // (0: all).
+  // (0 .. 1024; 0: all; std::invalid_argument beyond).
   void overlaps(const Particle* trials, const std::int64_t* exclude, std::size_t count,
                 std::int64_t* first_overlap, int threads = 0) const;
 
@@ -131,9 +131,9 @@ class MovingScene {
   // move(index[k], particles[k]) for every k, as if one after another.
   // Moves whose old and new cells are all distinct from those of every
   // other move of the call (a checkerboard sweep's domains) are applied by
-  // `threads` threads; otherwise, or when a move needs a rebuild, in order
-  // in one thread. Checks every move first (and throws, naming it, with
-  // the scene unchanged).
+  // `threads` threads (0 .. 1024; 0: all); otherwise, or when a move needs a
+  // rebuild, in order in one thread. Checks the thread count and every move
+  // first (and throws, naming it, with the scene unchanged).
   void move_many(const std::uint32_t* index, const Particle* particles, std::size_t count,
                  int threads = 0);
 

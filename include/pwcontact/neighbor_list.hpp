@@ -46,7 +46,7 @@ struct SkinOptions {
   double cutoff = 1.5;  // mu_cut: the pairs with mu < cutoff are reported
   double skin = 0.2;    // the list holds the pairs with mu < cutoff + skin (> 0)
   bool warm_start = true;
-  int threads = 0;     // 0: omp_get_max_threads()
+  int threads = 0;     // 0 .. 1024; 0: omp_get_max_threads()
   BatchOptions batch;  // of the solves (threads ignored)
 };
 

@@ -208,7 +208,7 @@ struct ScreenOptions {
   double cutoff = 1;      // mu_cut: a pair is found when mu < cutoff; positive and finite
   bool with_mu2 = false;  // also report mu^2 of every pair found (then every pair not found
                           // apart is solved: the inscribed prefilter gives no mu^2)
-  int threads = 0;        // OpenMP threads for every stage; 0: omp_get_max_threads()
+  int threads = 0;        // OpenMP threads for every stage, 0 .. 1024; 0: omp_get_max_threads()
   BatchOptions batch;     // precision, isa, ... of the solve (its threads are ignored)
   // Called now and then from one thread with the fraction of the candidate
   // search done (0 .. 1), e.g. for a progress bar; may be empty.

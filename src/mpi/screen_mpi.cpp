@@ -39,6 +39,7 @@
 #include "mpi/agree.hpp"
 #include "pwcontact/mpi.hpp"
 #include "screen/cell_lists.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact::detail {
 
@@ -239,8 +240,9 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
            !std::isfinite(options.cutoff * options.cutoff) ||
            !(options.cutoff * options.cutoff >= std::numeric_limits<double>::min()))
     error = "the cutoff must be positive and finite (and its square a normal number)";
-  else if (options.threads < 0)
-    error = "threads must be >= 0 (0 = all)";
+  else if (options.threads < 0 || options.threads > pwcontact::detail::max_threads)
+    error =
+        "threads must be in 0 .. " + std::to_string(pwcontact::detail::max_threads) + " (0: all)";
   else
     error = particles.unset_message();
   throw_if_any(comm, error);

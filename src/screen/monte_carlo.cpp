@@ -14,6 +14,7 @@
 
 #include "parallel_errors.hpp"
 #include "pwcontact/ellipsoid.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact {
 namespace {
@@ -119,7 +120,7 @@ HardParticleMC::HardParticleMC(const Box& box, std::vector<std::array<double, 3>
       !(options.rotation >= 0) || !std::isfinite(options.rotation))
     throw std::invalid_argument(
         "HardParticleMC: step sizes must be finite, the translation positive");
-  if (options.threads < 0) throw std::invalid_argument("HardParticleMC: threads must be >= 0");
+  detail::thread_count(options.threads, "HardParticleMC");
   State& s = *state_;
   s.box = box;
   s.semi_axes = std::move(semi_axes);

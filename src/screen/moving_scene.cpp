@@ -16,6 +16,7 @@
 #include "screen/cell_lists.hpp"
 #include "screen/huge_pages.hpp"
 #include "screen/pair_prefilters.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact {
 namespace {
@@ -747,6 +748,7 @@ bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
 void MovingScene::move_many(const std::uint32_t* index, const Particle* particles,
                             std::size_t count, int threads) {
   Impl& s = *impl_;
+  const int team = detail::thread_count(threads, "MovingScene::move_many");
   for (std::size_t k = 0; k < count; ++k) {
     s.check_index(index[k], "MovingScene::move_many");
     s.check_particle(particles[k], "MovingScene::move_many");
@@ -778,8 +780,7 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   }
   std::size_t changes = 0;
   std::ptrdiff_t outside_change = 0;
-#pragma omp parallel for num_threads(threads > 0 ? threads : omp_get_max_threads()) \
-    reduction(+ : changes, outside_change) schedule(static)
+#pragma omp parallel for num_threads(team) reduction(+ : changes, outside_change) schedule(static)
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t i = index[k];
     s.store.set_particle(i, particles[k]);  // (cannot throw: checked above)
@@ -951,13 +952,14 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
 void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, std::size_t count,
                            std::int64_t* first_overlap, int threads) const {
   const Impl& s = *impl_;
+  const int team = detail::thread_count(threads, "MovingScene::overlaps");
   for (std::size_t t = 0; t < count; ++t) s.check_trial(trials[t], 1.0, "MovingScene::overlaps");
   detail::ParallelErrors errors;
   // Trials in blocks per thread: each block's undecided pairs solved in
   // calls of many pairs, the SIMD lanes across trials.
   constexpr std::size_t block = 64;
   const std::size_t blocks = (count + block - 1) / block;
-#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads())
+#pragma omp parallel num_threads(team)
   {
     Pending pending(batch_solve_pairs);
     std::vector<Impl::NearSearch> searches(block);  // of a block's trials, for both parts

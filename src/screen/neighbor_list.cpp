@@ -12,6 +12,7 @@
 
 #include "parallel_errors.hpp"
 #include "screen/cell_lists.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact {
 namespace {
@@ -70,7 +71,7 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
   const double start = now();
   SkinReport report;
   const std::size_t n = particles.size();
-  const int threads = options_.threads > 0 ? options_.threads : omp_get_max_threads();
+  const int threads = detail::thread_count(options_.threads, "SkinNeighborList");
   const double cutoff = options_.cutoff;
   const screen::BoxGeometry geometry(box);
   // (A kept list is checked as a rebuild's screen checks the store: an unset

@@ -20,6 +20,7 @@
 #include "screen/cell_lists.hpp"
 #include "screen/pair_prefilters.hpp"
 #include "screen/radix_sort.hpp"
+#include "thread_count.hpp"
 
 namespace pwcontact {
 using screen::Side;
@@ -195,8 +196,7 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
   }
   // PWCONTACT_ISA and the CPU are read once, here.
   options.batch.isa = resolve_isa(options.batch.isa);
-  if (options.threads < 0)
-    throw std::invalid_argument("screen_pairs: threads must be >= 0 (0 = all)");
+  detail::thread_count(options.threads, "screen_pairs");
   // Cell indices are 32-bit and grids have up to two cells per particle.
   if (particles.size() >= (std::size_t(1) << 31))
     throw std::invalid_argument("screen_pairs: at most 2^31 - 1 particles");
