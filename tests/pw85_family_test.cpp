@@ -182,6 +182,39 @@ TEST(Pw85Family, ReturnedLambdaIsStationary) {
   EXPECT_LE(error.value, tolerance) << "pair " << error.index;
 }
 
+// The family rounded to float and solved as float pairs (float lanes, and
+// double lanes for what they cannot finish), against the long double oracle
+// on the float pairs widened exactly (rounding the inputs alone moves mu2 by
+// up to 3e-3: the float answer is judged on the pairs it was given). Measured
+// 2.2e-6 with avx512 and up to 3.6e-6 over instruction sets and
+// formulations (sse2, log_odds); 1e-5 is README's bound for this row.
+TEST(Pw85Family, FloatPairsWithinTenToTheMinusFiveOfTheOracleOnTheRoundedInputs) {
+  const std::vector<Pair<double>>& pairs = the_family().pairs;
+  std::vector<Pair<float>> rounded;
+  std::vector<Pair<double>> widened;
+  rounded.reserve(pairs.size());
+  widened.reserve(pairs.size());
+  for (const Pair<double>& p : pairs) {
+    rounded.push_back(pwtest::convert<float>(p));
+    widened.push_back(pwtest::convert<double>(rounded.back()));
+  }
+  const BatchRun<float> run = run_batch(make_batch(rounded));
+  const auto oracle = long_double_oracles(widened);
+  MaxError error;
+  std::size_t oracle_failures = 0;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    ASSERT_TRUE(pwcontact::is_valid(run.status[i])) << "pair " << i;
+    if (oracle[i].status != Status::ok) {
+      ++oracle_failures;  // (a rounded form the oracle finds not positive definite)
+      continue;
+    }
+    error.add(i, relative_error(run.mu2[i], oracle[i].mu2));
+  }
+  print_measured("pw85 family as float pairs vs long double on them, mu2 relative error", error);
+  EXPECT_LE(error.value, 1e-5) << "pair " << error.index;
+  EXPECT_EQ(oracle_failures, 0u);
+}
+
 TEST(Pw85Family, SinglePrecisionFinishesInDoubleLanesWhatFloatLanesCannot) {
   // Float lanes leave the lanes whose factorisation shows element growth
   // beyond float's bound (measured: 41 % of this family); the double kernels
