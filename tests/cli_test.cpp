@@ -1473,4 +1473,92 @@ TEST_F(cli, McWritesItsWholeSceneOrNothingAndChecksItsOutputFirst) {
   }
 }
 
+// What the shell sets up is kept: the file standard output already is, a
+// signal the caller ignores, standard input partly read; the outputs of a
+// failed run, and option order. Each was found broken by review.
+TEST_F(cli, TheShellsSetUpIsKeptAndAFailedRunLeavesNoOutput) {
+  auto shell = [&](const std::string& command) {
+    // ("cd ... || exit": with &&, a "&" in the command backgrounded the cd too.)
+    const std::string line = "cd " + quoted(path(".").string()) + " || exit 99; " + command;
+    const int status = std::system(line.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  const std::string program = quoted(PWCONTACT_CLI);
+  write_file("pairs.txt", "3 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n");
+  // -o /dev/stdout while the shell appends to a log: the log keeps its lines
+  // (was: replaced by a new file holding the result alone).
+  write_file("log.txt", "earlier line\n");
+  ASSERT_EQ(shell(program + " contact -o /dev/stdout pairs.txt >> log.txt 2>/dev/null"), 0);
+  const std::string log = read_file("log.txt");
+  EXPECT_EQ(log.rfind("earlier line\n", 0), 0u) << log;
+  EXPECT_NE(log.find("2.25"), std::string::npos) << log;
+  // A SIGHUP the caller ignores (nohup) stays ignored while an output file
+  // is written (was: the run died, exit 129, and lost its output). The input
+  // comes through a pipe after the signal, so that the run is under way.
+  EXPECT_EQ(shell("{ sleep 1; cat pairs.txt; } | (trap '' HUP; exec " + program +
+                  " contact -o hup.txt 2>/dev/null) & pid=$!; sleep 0.3; kill -HUP $pid; "
+                  "wait $pid"),
+            0);
+  EXPECT_NE(read_file("hup.txt").find("2.25"), std::string::npos);
+  // Standard input a file whose first line the shell has read: the rest is
+  // the input (was: "the file changed while it was read", exit 1).
+  write_file("headed.txt", "# a header line\n3 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n");
+  EXPECT_EQ(shell("{ read -r header; " + program +
+                  " contact > headed_out.txt 2>/dev/null; } < headed.txt"),
+            0);
+  EXPECT_NE(read_file("headed_out.txt").find("2.25"), std::string::npos);
+  // --write-gsd appears only when the run succeeds: not when -o fails
+  // (was: the GSD file was committed first).
+  const std::string gsd = std::string(PWCONTACT_TEST_DATA) + "/hoomd_triclinic.gsd";
+  const Outcome full =
+      run("screen --outputs counts --write-gsd full.gsd -o /dev/full " + quoted(gsd));
+  EXPECT_EQ(full.exit_status, 1) << full.err;
+  EXPECT_FALSE(fs::exists(path("full.gsd")));
+  // Repeated --box: the last given, whichever its form (was: --box= won).
+  write_file("two.txt", "0 0 0 1 1 1 1 0 0 0\n9 0 0 1 1 1 1 0 0 0\n");
+  const Outcome boxes = run("screen --format axes --box=10,10,10 --box 30 30 30 two.txt");
+  ASSERT_EQ(boxes.exit_status, 0) << boxes.err;
+  EXPECT_EQ(boxes.out, "") << "in a box of 30 the spheres are 9 apart";
+  const Outcome boxes_reversed = run("screen --format axes --box 30 30 30 --box=10,10,10 two.txt");
+  ASSERT_EQ(boxes_reversed.exit_status, 0) << boxes_reversed.err;
+  EXPECT_EQ(boxes_reversed.out, "0 1\n") << "in a box of 10 they are 1 apart";
+  // mc -o with an empty name (-o "$UNSET"): a usage error, not silence.
+  const Outcome unnamed = run("mc --n 64 -o ''");
+  EXPECT_EQ(unnamed.exit_status, 2) << unnamed.err;
+  EXPECT_TRUE(contains(unnamed.err, "needs a file name")) << unnamed.err;
+}
+
+// Overlap answers of the scalar path in single precision where mu^2 or the
+// cutoff's square lies outside float's normal range: decided in double, as
+// the batch path decides them (two unit spheres: mu = |r| / 2). Was: mu^2 =
+// 9e39 overflowed float and a cutoff of 1e20 answered "apart".
+TEST_F(cli, ScalarFloatOverlapAnswersBeyondFloatsRangeAreExact) {
+  write_file("far.txt", "1.9e20 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n2.1e20 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n");
+  write_file("near.txt",
+             "1.9e-20 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n2.1e-20 0 0 1 0 0 1 0 1 1 0 0 1 0 1\n");
+  // The overlap answers, each with a valid status (ok, or ok_fallback where
+  // the portable target's lanes are the reference path's).
+  auto answers = [](const std::string& out) {
+    std::string got;
+    for (const std::string& line : split_lines(out)) {
+      std::istringstream in(line);
+      int overlap = -1, status = -1;
+      in >> overlap >> status;
+      got += std::to_string(overlap) + (status == 0 || status == 1 ? " " : "(invalid) ");
+    }
+    return got;
+  };
+  for (const char* path_of : {"", "--scalar "}) {
+    const Outcome far = run(std::string("contact --mode overlap --cutoff 1e20 --precision float ") +
+                            path_of + "far.txt");
+    ASSERT_EQ(far.exit_status, 0) << far.err;
+    EXPECT_EQ(answers(far.out), "1 0 ") << path_of << far.out;
+    const Outcome near =
+        run(std::string("contact --mode overlap --cutoff 1e-20 --precision float ") + path_of +
+            "near.txt");
+    ASSERT_EQ(near.exit_status, 0) << near.err;
+    EXPECT_EQ(answers(near.out), "1 0 ") << path_of << near.out;
+  }
+}
+
 }  // namespace

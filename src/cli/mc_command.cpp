@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -75,7 +76,11 @@ OptionParser mc_parser(McOptions& options) {
   add_threads_option(parser, options.threads, "the sweeps");
   parser.add_value({"-o", "--output"}, "FILE", "(none)",
                    "where the final scene goes: GSD for a .gsd name, else axes text",
-                   [&options](std::string_view value) { options.output = std::string(value); });
+                   [&options](std::string_view value) {
+                     // (An empty name, -o "$UNSET", wrote nothing and said nothing.)
+                     if (value.empty()) throw std::invalid_argument("needs a file name");
+                     options.output = std::string(value);
+                   });
   return parser;
 }
 

@@ -255,6 +255,13 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
   struct stat before {};
   if (fstat(descriptor_, &before) != 0) fail_to_read(name_, errno);
   if (S_ISDIR(before.st_mode)) fail_to_read(name_, EISDIR);
+  // Where reading starts: standard input may be a file already partly read
+  // (`{ read -r header; pwcontact contact; } < file`), whose rest is the
+  // input. (Not seekable, a pipe: 0.)
+  const off_t start = S_ISREG(before.st_mode) ? lseek(descriptor_, 0, SEEK_CUR) : 0;
+  const std::size_t expected = start > 0 && start <= before.st_size
+                                   ? std::size_t(before.st_size - start)
+                                   : std::size_t(before.st_size);
 
   // Read in blocks through one buffer, never mapped: memory stays that of a
   // block whatever the size of the input, and a file that shrinks while it
@@ -298,11 +305,10 @@ void TextInput::read_lines(const std::function<void(std::string_view lines)>& on
   // those of /proc, are read as they come.)
   struct stat after {};
   if (S_ISREG(before.st_mode) && before.st_size > 0 &&
-      (fstat(descriptor_, &after) != 0 || after.st_size != before.st_size ||
-       total != std::size_t(before.st_size)))
+      (fstat(descriptor_, &after) != 0 || after.st_size != before.st_size || total != expected))
     throw CommandError(ExitStatus::io_error,
                        "cannot read " + name_ + ": the file changed while it was read (" +
-                           std::to_string(before.st_size) + " bytes when opened, " +
+                           std::to_string(expected) + " bytes to read when opened, " +
                            std::to_string(total) + " read)");
 }
 

@@ -164,7 +164,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                    "--box=LX,LY,LZ[,XY,XZ,YZ]. The width of the box across each pair of "
                    "faces must be at least twice the largest reach cutoff * 2 R_max. "
                    "Simulation files give their own box",
-                   // Only the --box=... form reaches here (take_box takes the other).
+                   // (take_box takes both forms, in order: this is for the help.)
                    [&options](std::string_view value) { options.box = parse_box_numbers(value); });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
@@ -226,6 +226,16 @@ Arguments take_box(const Arguments& arguments, ScreenCommandOptions& options,
     if (arguments[k] == "--") {
       rest.insert(rest.end(), arguments.begin() + std::ptrdiff_t(k), arguments.end());
       break;
+    }
+    // (The --box=... form taken here too, in its place among the others:
+    // left to the parser, it came after every spaced --box and always won.)
+    if (arguments[k].rfind("--box=", 0) == 0) {
+      try {
+        options.box = parse_box_numbers(std::string_view(arguments[k]).substr(6));
+      } catch (const std::invalid_argument& e) {
+        parser.fail(std::string("option --box: ") + e.what());
+      }
+      continue;
     }
     if (arguments[k] != "--box") {
       rest.push_back(arguments[k]);
@@ -517,9 +527,12 @@ ExitStatus run_screen_on(const Arguments& arguments, const ScreenRanks* ranks) {
       throw CommandError(ExitStatus::io_error, e.what());
     }
     gsd_output->write(bytes.str());
-    gsd_output->commit();
   }
+  // The main output first: if it cannot be written, the GSD file (still a
+  // temporary) is removed with it, as --help promises ("appears only when
+  // the run succeeds"; committed first, it outlived a failed run).
   output->commit();
+  if (gsd_output) gsd_output->commit();
   std::fprintf(stderr,
                "pwcontact screen: %zu %s from %s (read in %s), %zu pairs, %s to %s "
                "(written in %s)\n%s",

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <type_traits>
@@ -182,7 +183,28 @@ Solution<T> solve_reference(const PairBatch<T>& pairs, const Request& request, i
           out, i,
           solved ? contact_geometry<T>(r12, q1, q2, result.lambda) : undefined_geometry<T>());
     if (overlap) {
-      overlap[i] = solved && double(result.mu2) < cutoff_mu2;
+      bool overlaps = solved && double(result.mu2) < cutoff_mu2;
+      // Float cannot decide where mu^2 or cutoff^2 lies outside its normal
+      // range (mu^2 = inf beyond 3.4e38, subnormal below 1.2e-38, with a
+      // few digits): there the pair, widened exactly, is decided in double,
+      // as the batch path's float lanes hand such pairs to double ones.
+      // (Was: mu^2 = 9e39 against a cutoff^2 of 1e40 answered "apart".)
+      if (std::is_same_v<T, float> && solved &&
+          !(std::abs(double(result.mu2)) >= double(std::numeric_limits<float>::min()) &&
+            double(result.mu2) <= double(std::numeric_limits<float>::max()) &&
+            cutoff_mu2 >= double(std::numeric_limits<float>::min()) &&
+            cutoff_mu2 <= double(std::numeric_limits<float>::max()))) {
+        double wide_r12[3], wide_q1[6], wide_q2[6];
+        for (int k = 0; k < 3; ++k) wide_r12[k] = double(r12[k]);
+        for (int k = 0; k < 6; ++k) {
+          wide_q1[k] = double(q1[k]);
+          wide_q2[k] = double(q2[k]);
+        }
+        const ContactResult<double> wide = contact_function<double>(wide_r12, wide_q1, wide_q2);
+        overlaps =
+            (is_valid(wide.status) || wide.status == Status::out_of_range) && wide.mu2 < cutoff_mu2;
+      }
+      overlap[i] = overlaps;
       overlapping += overlap[i];
     }
   }

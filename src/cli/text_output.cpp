@@ -57,8 +57,15 @@ void remove_pending_and_abort() {
 // the handlers on first use.
 int set_pending(const std::string& path) {
   static const bool installed = [] {
-    for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGQUIT})
+    // (A signal the caller set to be ignored, as nohup does SIGHUP and a
+    // shell SIGINT for a background job, stays ignored: handled, it ended
+    // the run that was meant to survive it.)
+    for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
+      struct sigaction current {};
+      if (sigaction(signal_number, nullptr, &current) == 0 && current.sa_handler == SIG_IGN)
+        continue;
       std::signal(signal_number, remove_pending_and_reraise);
+    }
     std::set_terminate(remove_pending_and_abort);
     return true;
   }();
@@ -99,6 +106,17 @@ OutputFile::OutputFile(const std::string& path) {
   name_ = path;
   struct stat existing {};
   const bool exists = stat(path.c_str(), &existing) == 0;
+  // The file standard output or error already is (-o /dev/stdout while the
+  // shell appends to a log): written through that descriptor, as it is
+  // open, not replaced by a new file (which lost what the log held).
+  for (FILE* standard : {stdout, stderr}) {
+    struct stat open_file {};
+    if (exists && fstat(fileno(standard), &open_file) == 0 && open_file.st_dev == existing.st_dev &&
+        open_file.st_ino == existing.st_ino) {
+      file_ = standard;
+      return;
+    }
+  }
   if (exists && !S_ISREG(existing.st_mode)) {
     // A device or a pipe (/dev/null, a FIFO) is written in place: renaming
     // over it would replace the device itself. (A directory fails here.)
