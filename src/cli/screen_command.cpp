@@ -155,17 +155,19 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
       "lists, decided by the prefilters, solved, found, the time of each stage and the "
       "rates.",
       "[FILE]", 1, [&options](std::string_view file) { options.input = file; });
-  parser.add_value({"--box"}, "LX LY LZ [XY XZ YZ]", "open boundaries",
-                   "for the text formats: a periodic box with these edge lengths (positive) "
-                   "and tilt factors (unitless, HOOMD-blue's convention: lattice vectors "
-                   "(LX, 0, 0), (XY LY, LY, 0), (XZ LZ, YZ LZ, LZ); LAMMPS's tilt lengths "
-                   "xy xz yz are XY = xy/LY, XZ = xz/LZ, YZ = yz/LZ), pairs by the minimum "
-                   "image convention; for ellipses LX LY [XY], periodic in the plane. Also "
-                   "--box=LX,LY,LZ[,XY,XZ,YZ]. The width of the box across each pair of "
-                   "faces must be at least twice the largest reach cutoff * 2 R_max. "
-                   "Simulation files give their own box",
-                   // (take_box takes both forms, in order: this is for the help.)
-                   [&options](std::string_view value) { options.box = parse_box_numbers(value); });
+  parser.add_value(
+      {"--box"}, "LX LY LZ [XY XZ YZ]", "open boundaries",
+      "for the text formats: a periodic box with these edge lengths (positive) "
+      "and tilt factors (unitless, HOOMD-blue's convention: lattice vectors "
+      "(LX, 0, 0), (XY LY, LY, 0), (XZ LZ, YZ LZ, LZ); LAMMPS's tilt lengths "
+      "xy xz yz are XY = xy/LY, XZ = xz/LZ, YZ = yz/LZ), pairs by the minimum "
+      "image convention; for ellipses LX LY [XY], periodic in the plane. Also "
+      "--box=LX,LY,LZ[,XY,XZ,YZ]. The width of the box across each pair of "
+      "faces must be more than twice the largest reach cutoff * 2 R_max (the bounding radii "
+      "are rounded up by a few eps: a box of exactly twice is refused). "
+      "Simulation files give their own box",
+      // (take_box takes both forms, in order: this is for the help.)
+      [&options](std::string_view value) { options.box = parse_box_numbers(value); });
   parser.add_value({"--cutoff"}, "MU", "1", "a pair is found when mu < MU; positive and finite",
                    [&options](std::string_view value) { options.cutoff = parse_cutoff(value); });
   const Choices<SceneFormat> formats{
