@@ -304,21 +304,15 @@ def _apart_from_out(out: dict, r12, q1, q2, lambda_start):
             if np.may_share_memory(a, b):
                 raise ValueError(f"out[{key!r}] and out[{other!r}] share memory: give separate arrays")
 
-    def apart(x, allowed=None):
-        for key, a in arrays:
-            if a is allowed or (isinstance(allowed, np.ndarray) and isinstance(x, np.ndarray)
-                                and a.__array_interface__ == x.__array_interface__ and key == "lambda"):
-                continue
-            if np.may_share_memory(a, x):
-                return np.array(x, copy=True)
+    def apart(x, skip=None):
+        if any(key != skip and np.may_share_memory(a, x) for key, a in arrays):
+            return np.array(x, copy=True)
         return x
 
     lam = out.get("lambda")
     same_lambda = (isinstance(lam, np.ndarray) and isinstance(lambda_start, np.ndarray)
                    and lam.__array_interface__ == lambda_start.__array_interface__)
-    start = lambda_start
-    if start is not None:
-        start = apart(start, lam if same_lambda else None)
+    start = None if lambda_start is None else apart(lambda_start, "lambda" if same_lambda else None)
     return apart(r12), apart(q1), apart(q2), start
 
 

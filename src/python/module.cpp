@@ -31,6 +31,7 @@
 #include "fixtures/families.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/pwcontact.hpp"
+#include "thread_count.hpp"
 #if PWCONTACT_WITH_MPI
 #include "mpi/agree.hpp"
 #include "pwcontact/mpi.hpp"
@@ -144,7 +145,7 @@ std::size_t common_rows(std::initializer_list<std::pair<std::size_t, bool>> arra
 int thread_count(int threads) {
   // (At most the command line's 1024: 10^5 threads segfaulted the
   // interpreter in the batched MovingScene query and in screen.)
-  if (threads < 0 || threads > 1024)
+  if (threads < 0 || threads > pwcontact::detail::max_threads)
     throw py::value_error("threads must be in 0 .. 1024 (0: all), got " + std::to_string(threads));
   return threads > 0 ? threads : omp_get_max_threads();
 }

@@ -79,7 +79,7 @@ struct HardParticleMC::State {
   ScreenWorkspace workspace;
   ScreenedPairs near;
 
-  int threads() const { return options.threads > 0 ? options.threads : omp_get_max_threads(); }
+  int threads() const { return detail::thread_count(options.threads, "HardParticleMC"); }
 
   void make_scene(const std::vector<std::array<double, 3>>& centre) {
     ParticleStore store;

@@ -422,7 +422,7 @@ ScreenReport screen_in(const ParticleStore& particles, const Box& box, const Scr
   } else {
     out = {};
   }
-  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  const int threads = detail::thread_count(options.threads, "screen_pairs");
   report.threads = threads;
   const double cutoff = options.cutoff;
 
@@ -543,7 +543,7 @@ ScreenReport screen_candidates(const ParticleStore& particles, const Box& box,
   ScreenReport report;
   report.particles = n;
   out = {};
-  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  const int threads = detail::thread_count(options.threads, "screen_pairs");
   report.threads = threads;
   const double t1 = omp_get_wtime();
   const std::vector<double>& bounding = particles.bounding_radius();
@@ -596,7 +596,7 @@ void for_each_candidate_pair(const ParticleStore& particles, const Box& box, dou
   given.cutoff = cutoff;
   given.threads = threads;
   const ScreenOptions options = checked(particles, box, given);
-  threads = threads > 0 ? threads : omp_get_max_threads();
+  threads = detail::thread_count(options.threads, "for_each_candidate_pair");
   const screen::CellLists lists = screen::build_cell_lists(particles, box, cutoff, threads);
   screen::search_candidates<false>(
       lists, threads, {},
