@@ -237,6 +237,43 @@ def test_files_written_by_hoomd_screen_as_the_command_line_does(cli, name):
         assert np.array_equal(native.pairs, expected) and np.array_equal(native.mu2, mu2)
 
 
+def test_the_monte_carlo_scene_is_a_float32_hoomd_frame_with_no_pair_within_1e6_of_contact(
+        cli, tmp_path):
+    """`pwcontact mc -o x.gsd` writes the hoomd schema as HOOMD-blue reads it
+    (float32 chunks, centres in [-L/2, L/2)), and the rounded scene keeps every
+    pair at mu >= 1 + 1e-6: checked here by contact_function over every pair
+    (the minimum image: the box is wider than twice any reach), not by the
+    screen the command itself ran."""
+    path = tmp_path / "mc.gsd"
+    subprocess.run([cli, "mc", "--n", "64", "--packing", "0.3", "--seed", "3", "-o", str(path)],
+                   check=True, capture_output=True)
+    with gsd_hoomd.open(str(path), "rb") as f:
+        frame = f[0]
+    assert frame.particles.position.dtype == np.float32
+    assert frame.particles.orientation.dtype == np.float32
+    assert np.asarray(frame.configuration.box).dtype == np.float32
+    box = np.asarray(frame.configuration.box, dtype=np.float64)
+    assert np.all(box[3:] == 0)
+    position = frame.particles.position.astype(np.float64)
+    assert np.all(position >= -box[:3] / 2) and np.all(position < box[:3] / 2)
+    quaternion = frame.particles.orientation.astype(np.float64)
+    assert np.allclose(np.linalg.norm(quaternion, axis=1), 1, rtol=0, atol=3e-7)
+    shapes = frame.particles.type_shapes
+    axes = np.array([[shapes[t]["a"], shapes[t]["b"], shapes[t]["c"]]
+                     for t in frame.particles.typeid])
+    q = pw.quadratic_form(axes, quaternion)
+    n = len(position)
+    i, j = np.triu_indices(n, 1)
+    d = position[j] - position[i]
+    d -= box[:3] * np.round(d / box[:3])
+    r = pw.contact_function(d, q[i], q[j], outputs=("mu2",))
+    assert pw.is_valid(r.status).all()
+    # mu2 to ~1e-13 (README's double bound on these compact shapes) against a
+    # margin of 2e-6 in mu2.
+    assert r.mu2.min() >= (1 + 1e-6) ** 2 * (1 - 1e-12)
+    assert r.mu2.min() < 1.2  # compressed: some pairs are near contact
+
+
 @pytest.mark.parametrize("name", ["lammps_triclinic.data", "lammps_triclinic.dump"])
 def test_lammps_files_through_the_cpp_readers(cli, name):
     path = DATA / name

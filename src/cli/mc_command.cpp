@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/float32_scene.hpp"
 #include "cli/subcommands.hpp"
 #include "cli/text_output.hpp"
 #include "pwcontact/monte_carlo.hpp"
@@ -51,9 +52,11 @@ OptionParser mc_parser(McOptions& options) {
       "sweeps of batched trial queries in scenes of many cells (the same result for every "
       "thread count), one trial at a time in small ones. Standard error shows the progress, "
       "the step sizes and the acceptance rate; the final scene goes to -o FILE: GSD (.gsd: "
-      "the hoomd schema, centres wrapped into the box centred on the origin, float64 "
-      "positions, orientations and box so that no near contact is rounded into an overlap "
-      "(HOOMD-blue's own reader takes float32 only); types A0 .. A15 with their Ellipsoid shapes) "
+      "the hoomd schema as HOOMD-blue reads it: float32 positions, orientations and box, "
+      "centres wrapped into the box centred on the origin, every pair of the rounded scene "
+      "at mu >= 1 + 1e-6 (where rounding brings a pair closer, centres and box are scaled "
+      "up by the least factor that keeps it, said on standard error); types A0 .. A15 with "
+      "their Ellipsoid shapes) "
       "or text "
       "(any other name: 'pwcontact screen --format axes' lines, x y z a b c qw qx qy qz, "
       "with the box in a comment line and the command that reads it back).");
@@ -100,9 +103,9 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 }
 
 // The scene as one GSD frame. GsdWriter rewrites the file's header when it
-// finishes, so the frame is made in memory (60 bytes a particle) and then
+// finishes, so the frame is made in memory (32 bytes a particle) and then
 // written through `out` as one block.
-void write_gsd(const HardParticleMC& mc, OutputFile& out) {
+void write_gsd(const HardParticleMC& mc, OutputFile& out, int threads) {
   const ParticleStore& s = mc.particles();
   const std::size_t n = s.size();
   std::map<std::array<double, 3>, std::uint32_t> type_of_shape;
@@ -120,35 +123,35 @@ void write_gsd(const HardParticleMC& mc, OutputFile& out) {
                   axes[1], axes[2]);
     shapes[t] = json;
   }
-  // The centres wrapped into the box as the hoomd schema places it, centred
-  // on the origin: [-L/2, L/2) along each axis (the sweeps leave them
-  // anywhere; HOOMD-blue refuses particles outside its box). The Monte Carlo
-  // box is a cube.
+  // float32 as HOOMD-blue reads the hoomd schema, centres in [-L/2, L/2),
+  // every pair of the rounded scene at mu >= 1 + 1e-6 (float32_scene.hpp):
+  // 1e-6 leaves room for readers that use a quaternion of norm 1 +- 1e-7 as
+  // it is, as HOOMD-blue's rotations do.
+  std::vector<std::array<double, 3>> centre(n);
+  for (std::size_t i = 0; i < n; ++i) centre[i] = {s.centre(0)[i], s.centre(1)[i], s.centre(2)[i]};
   const Box& box = mc.box();
-  std::vector<double> position(3 * n), orientation(4 * n);
-  for (std::size_t i = 0; i < n; ++i) {
-    for (int k = 0; k < 3; ++k) {
-      const double x = s.centre(k)[i], length = box.length[std::size_t(k)];
-      const double wrapped = x - length * std::floor(x / length + 0.5);
-      position[3 * i + k] = wrapped < length / 2 ? wrapped : wrapped - length;
-    }
-    for (int k = 0; k < 4; ++k) orientation[4 * i + k] = mc.orientation()[i][k];
+  const Float32Scene rounded =
+      round_to_float32(box, centre, mc.semi_axes(), mc.orientation(), 1e-6, threads);
+  if (rounded.scale != 1) {
+    const double ratio = box.length[0] / double(rounded.box[0]) * box.length[1] /
+                         double(rounded.box[1]) * box.length[2] / double(rounded.box[2]);
+    std::fprintf(stderr,
+                 "pwcontact mc: rounded to float32, a pair came within 1e-6 of contact: the GSD "
+                 "frame's centres and box are scaled by 1 + %.2g (packing fraction %.6f)\n",
+                 rounded.scale - 1, mc.packing() * ratio);
   }
   std::ostringstream frame(std::ios::binary);
   GsdWriter writer(frame);
   writer.write("configuration/step", std::vector<std::uint64_t>{mc.sweeps()}, 1);
   const std::uint8_t three = 3;
   writer.write_chunk("configuration/dimensions", 1, 1, 1, &three);
-  writer.write("configuration/box",
-               std::vector<double>{box.length[0], box.length[1], box.length[2], box.tilt[0],
-                                   box.tilt[1], box.tilt[2]},
-               6);
+  writer.write("configuration/box", std::vector<float>(rounded.box.begin(), rounded.box.end()), 6);
   writer.write("particles/N", std::vector<std::uint32_t>{std::uint32_t(n)}, 1);
   writer.write("particles/types", names);
   writer.write("particles/typeid", typeid_, n);
   writer.write("particles/type_shapes", shapes);
-  writer.write("particles/position", position, n);
-  writer.write("particles/orientation", orientation, n);
+  writer.write("particles/position", rounded.position, n);
+  writer.write("particles/orientation", rounded.orientation, n);
   writer.end_frame();
   writer.finish();
   out.write(frame.str());
@@ -257,7 +260,7 @@ ExitStatus run_mc(const Arguments& arguments) {
                proposed ? double(accepted) / double(proposed) : 0.0);
   if (out) {
     if (ends_with(options.output, ".gsd"))
-      write_gsd(mc, *out);
+      write_gsd(mc, *out, mc_options.threads);
     else
       write_text(mc, *out, options.output);
     std::fprintf(stderr, "pwcontact mc: wrote %s\n", options.output.c_str());
