@@ -430,6 +430,51 @@ int main(int argc, char** argv) {
       else
         call();
     }
+    // The solve's options decide mu^2's last bits: one rank in single
+    // precision gave other mu^2 than the single-process screen, silently.
+    if (ranks > 1)
+      expect_error(
+          "a precision that differs between ranks",
+          [&] {
+            ParticleStore s;
+            ScreenOptions options;
+            if (rank == 1) options.batch.precision = pwcontact::Precision::single_precision;
+            pwcontact::mpi::TaggedPairs out;
+            pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, std::vector<std::uint64_t>{}, cube,
+                                         options, out);
+          },
+          "different batch precisions");
+    // A box made field by field with a NaN, on the last rank only: a NaN
+    // drops out of the ranks' min and max, and that rank alone threw (the
+    // others waited for it for ever).
+    for (const bool in_tilt : {false, true})
+      expect_error(
+          in_tilt ? "a NaN tilt on one rank" : "a NaN box length on one rank",
+          [&] {
+            ParticleStore s;
+            std::vector<std::uint64_t> tags;
+            if (rank == 0) {
+              s.add_axes({1, 1, 1}, {1, 1, 1}, {1, 0, 0, 0});
+              tags = {0};
+            }
+            Box box = cube;
+            if (rank == ranks - 1) (in_tilt ? box.tilt[0] : box.length[0]) = std::nan("");
+            pwcontact::mpi::TaggedPairs out;
+            pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, box, ScreenOptions{}, out);
+          },
+          "positive, finite lengths and finite tilts");
+    // A two-dimensional box is not split along z, whatever z its centres
+    // have (ellipsoids off the plane were split into 2 x 2 x 2 on 8 ranks).
+    {
+      Scene scene = random_scene("two-dimensional box, centres off the plane",
+                                 Box::two_dimensional_box(30, 30), 800, {30, 30, 6}, 0.8, 1, 26);
+      const pwcontact::mpi::DistributedReport r = check(scene, 1.0, true);
+      if (rank == 0) {
+        std::printf("%-40s %d ranks: %s\n", "two-dimensional box: z not split", ranks,
+                    r.dims[2] == 1 ? "one rank along z" : "WRONG: split along z");
+        if (r.dims[2] != 1) ++failures;
+      }
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rank %d: %s\n", rank, e.what());
     MPI_Abort(MPI_COMM_WORLD, 2);

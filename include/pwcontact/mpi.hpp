@@ -29,10 +29,10 @@
 // radii, r12 and solve for every pair).
 //
 // Every function here is collective over the communicator: every rank calls
-// it, with the same box and options (a box, cutoff or with_mu2 that differs
-// between ranks is an error). An error in the input of any rank
-// (std::invalid_argument) is thrown on every rank, with the message of the
-// lowest rank that found one.
+// it, with the same box and options (a box, cutoff, with_mu2 or solve option
+// that differs between ranks is an error; so is a box with a NaN). An error in the input of any
+// rank (std::invalid_argument) is thrown on every rank, with the message of the lowest rank that
+// found one.
 #pragma once
 
 #include <mpi.h>
@@ -82,10 +82,12 @@ struct DistributedReport {
 // A particle whose reach is wider than a subdomain is handled: the ranks
 // exchange ghosts with every rank within the largest reach (more than the
 // 26 nearest, then), and each particle goes only to the ranks it can reach.
-// The local screen's r12 of a pair is the single-process one to the bit; in
-// a triclinic box this holds when both screens' cell lists have at least 3
-// cells across each periodic axis (with fewer, r12 is the minimum image of a
-// sum, which may differ in its last bit).
+// The local screen's r12 of a pair is the single-process one to the bit,
+// whatever either screen's cell lists (r12 is the plain difference of the
+// wrapped centres plus the same lattice vector in both), and so is mu^2 when
+// every rank passes the same options. The box, the cutoff, with_mu2 and the
+// solve's options (iterations, precision, accuracy, formulation) are
+// compared across the ranks: ranks that differ are refused on every rank.
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint64_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out);

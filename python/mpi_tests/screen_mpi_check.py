@@ -139,12 +139,17 @@ for name, kind, text, call in cases:
     if rank == 0:
         check(len(after.pairs) == max(0, size - 1), f"after {name}: {len(after.pairs)} pairs")
 
-# Settings that differ between ranks (box, cutoff, gather): a ValueError on
-# every rank, not pairs by different rules or a rank waiting alone.
+# Settings that differ between ranks (box, cutoff, gather, tags given or
+# not): a ValueError on every rank, not pairs by different rules or a rank
+# waiting alone (tags on one rank only hung, or paired by mismatched scans).
 if size > 1:
     for name, kw in [("cutoff", lambda: {"cutoff": 1.0 + 0.5 * (rank == bad)}),
                      ("box", lambda: {"box": pw.Box.cube(20 + (rank == bad))}),
-                     ("gather", lambda: {"gather": rank == bad})]:
+                     ("gather", lambda: {"gather": rank == bad}),
+                     ("tags", lambda: {"tags": np.array([rank], dtype=np.uint64)}
+                      if rank == bad else {}),
+                     ("tags", lambda: {"tags": np.array([rank], dtype=np.uint64)}
+                      if rank != bad else {})]:
         arguments = {"box": pw.Box.cube(20), **kw()}
         try:
             pw.screen(np.array([[1.0 + rank, 1, 1]]), None, [1.0, 0.4, 0.3], comm=comm, **arguments)

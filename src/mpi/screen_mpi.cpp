@@ -109,6 +109,19 @@ using detail::throw_if_any;
 
 using pwcontact::detail::ParticleRecord;
 
+// What Box's constructors hold a periodic box to (a Box made field by field
+// may not be): positive, finite lengths (but the z of a two-dimensional
+// box) and finite tilts. Open boundaries have no lengths.
+bool box_is_valid(const Box& box) {
+  if (!box.periodic) return true;
+  for (int k = 0; k < 3; ++k) {
+    const double l = box.length[std::size_t(k)];
+    if (!(box.two_dimensional && k == 2) && !(l > 0 && std::isfinite(l))) return false;
+    if (!std::isfinite(box.tilt[std::size_t(k)])) return false;
+  }
+  return true;
+}
+
 // Frees the communicators and the datatype made here, however we leave.
 struct Handles {
   MPI_Comm cart = MPI_COMM_NULL, graph = MPI_COMM_NULL;
@@ -243,25 +256,43 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   else if (options.threads < 0 || options.threads > pwcontact::detail::max_threads)
     error =
         "threads must be in 0 .. " + std::to_string(pwcontact::detail::max_threads) + " (0: all)";
+  else if (!box_is_valid(box))
+    // (Before the ranks compare their boxes: a NaN drops out of a min or max
+    // reduction, and one rank alone then threw where the others waited.)
+    error = "a periodic box needs positive, finite lengths and finite tilts";
   else
     error = particles.unset_message();
   throw_if_any(comm, error);
   // The box and the options that decide the pairs, the same on every rank:
   // ranks that differ would pair particles by different rules, or wait for
   // each other in calls the others do not make.
+  // (The solve's options too: they decide mu^2's last bits, and so the
+  // pairs within rounding of the cutoff.)
   {
-    const double mine[10] = {box.length[0],        box.length[1],
-                             box.length[2],        box.tilt[0],
-                             box.tilt[1],          box.tilt[2],
-                             double(box.periodic), double(box.two_dimensional),
-                             options.cutoff,       double(options.with_mu2)};
-    double low[10], high[10];
-    MPI_Allreduce(mine, low, 10, MPI_DOUBLE, MPI_MIN, comm);
-    MPI_Allreduce(mine, high, 10, MPI_DOUBLE, MPI_MAX, comm);
-    const char* names[10] = {"box lengths", "box lengths",      "box lengths", "box tilts",
-                             "box tilts",   "box tilts",        "box kinds",   "box kinds",
-                             "cutoffs",     "with_mu2 settings"};
-    for (int k = 0; k < 10; ++k)
+    constexpr int count = 14;
+    const double mine[count] = {box.length[0],
+                                box.length[1],
+                                box.length[2],
+                                box.tilt[0],
+                                box.tilt[1],
+                                box.tilt[2],
+                                double(box.periodic),
+                                double(box.two_dimensional),
+                                options.cutoff,
+                                double(options.with_mu2),
+                                double(options.batch.iterations),
+                                double(static_cast<int>(options.batch.precision)),
+                                double(static_cast<int>(options.batch.accuracy)),
+                                double(static_cast<int>(options.batch.formulation))};
+    double low[count], high[count];
+    MPI_Allreduce(mine, low, count, MPI_DOUBLE, MPI_MIN, comm);
+    MPI_Allreduce(mine, high, count, MPI_DOUBLE, MPI_MAX, comm);
+    const char* names[count] = {"box lengths",       "box lengths",       "box lengths",
+                                "box tilts",         "box tilts",         "box tilts",
+                                "box kinds",         "box kinds",         "cutoffs",
+                                "with_mu2 settings", "batch iterations",  "batch precisions",
+                                "batch accuracies",  "batch formulations"};
+    for (int k = 0; k < count; ++k)
       if (low[k] != high[k]) {
         // (Thrown on every rank alike: every rank has the same low and high.)
         throw std::invalid_argument(std::string("screen_pairs (MPI): the ranks give different ") +
@@ -318,9 +349,10 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
       grid.extent[K] = global_max[1 + k] - grid.low[K];
       grid.width[K] = grid.extent[K];
     }
-    // No split along an axis of no extent (the z of a two-dimensional box, a
-    // plane of centres in open boundaries).
-    if (!(grid.width[K] > 0)) dims[K] = 1;
+    // No split along an axis of no extent (a plane of centres in open
+    // boundaries), nor along the z of a two-dimensional box, whatever z its
+    // centres have.
+    if (!(grid.width[K] > 0) || (k == 2 && box.two_dimensional)) dims[K] = 1;
   }
   // (Every axis of no extent: a point, or no particles at all; the ranks
   // along x then, all but one of them empty.)

@@ -656,14 +656,21 @@ py::dict screen_mpi(const py::object& positions, const py::object& orientations,
   }
   // gather, the same on every rank (the box and the options are checked
   // by the screen): a rank alone in gather_pairs would wait there for ever.
-  int gathers = gather ? 1 : 0, all_gather = 0;
-  MPI_Allreduce(&gathers, &all_gather, 1, MPI_INT, MPI_SUM, comm);
+  // So must the choice of tags: ranks without them number their particles
+  // by a scan the ranks with them would not join (a hang, or tags from a
+  // mismatched collective).
+  const int mine[2] = {gather ? 1 : 0, tags_in.is_none() ? 0 : 1};
+  int all[2] = {0, 0};
+  MPI_Allreduce(mine, all, 2, MPI_INT, MPI_SUM, comm);
   int ranks = 1;
   MPI_Comm_size(comm, &ranks);
-  if (all_gather != 0 && all_gather != ranks)
-    throw py::value_error("screen (MPI): gather is True on " + std::to_string(all_gather) +
-                          " of the " + std::to_string(ranks) +
-                          " ranks; every rank must pass the same gather");
+  if (all[0] != 0 && all[0] != ranks)
+    throw py::value_error("screen (MPI): gather is True on " + std::to_string(all[0]) + " of the " +
+                          std::to_string(ranks) + " ranks; every rank must pass the same gather");
+  if (all[1] != 0 && all[1] != ranks)
+    throw py::value_error("screen (MPI): tags are given on " + std::to_string(all[1]) + " of the " +
+                          std::to_string(ranks) +
+                          " ranks; every rank must pass the same: tags on every rank, or on none");
   const std::size_t n = store.size();
   if (tags_in.is_none()) {
     tags.resize(n);
