@@ -202,6 +202,12 @@ class Run:
             if m:
                 self.measurements.append(m)
         self.table = Table(self.measurements)
+        # The pairs of each generated family (random, extreme, scene) in this run: the
+        # targets are for families of TARGET_GENERATED_PAIRS (smaller ones stay in cache).
+        try:
+            self.table.generated_pairs = int(self.context["pwcontact_generated_pairs"])
+        except (KeyError, ValueError):
+            self.table.generated_pairs = None
 
     def _add(self, records, position, run):
         if run.get("error_occurred"):
@@ -314,8 +320,8 @@ class Target:
     """A path, family and accuracy with default settings and 1 thread (isa "auto" stands for
     the run's default instruction set). Full answers: the bound on the max relative error of
     mu^2; overlap answers are held to no misclassification beyond 1e-9 of tangency instead, on
-    the family and on its near-tangent set when measured. min_speedup: over brent_baseline on
-    the same family; 0: throughput reported only."""
+    the family and on its near-tangent set (a run without either has no verdict). min_speedup:
+    over brent_baseline on the same family; 0: throughput reported only."""
 
     def __init__(self, configuration, max_rel_err, min_speedup):
         self.configuration = configuration
@@ -363,9 +369,31 @@ def within_accuracy(t, m):
     """Whether `m` is as accurate as the target asks (not whether it is fast enough)."""
     if not is_overlap(t.configuration.path):
         return m.counter(MAX_REL_ERR) <= t.max_rel_err  # False for NaN
-    # NaN (not measured) compares false: only a measured zero is within.
-    near_tangent = m.counter(NEAR_TANGENT_MISCLASSIFIED_BEYOND)
-    return m.counter(MISCLASSIFIED_BEYOND) == 0 and (math.isnan(near_tangent) or near_tangent == 0)
+    # NaN (not measured) compares false: only a measured zero is within, on the family and
+    # on its near-tangent set.
+    return (m.counter(MISCLASSIFIED_BEYOND) == 0
+            and m.counter(NEAR_TANGENT_MISCLASSIFIED_BEYOND) == 0)
+
+
+def accuracy_measured(t, m):
+    """Whether `m` has every figure its target's accuracy is judged by."""
+    if not is_overlap(t.configuration.path):
+        return not math.isnan(m.counter(MAX_REL_ERR))
+    return not (math.isnan(m.counter(MISCLASSIFIED_BEYOND))
+                or math.isnan(m.counter(NEAR_TANGENT_MISCLASSIFIED_BEYOND)))
+
+
+# The size of the generated families the targets are set on (the benchmarks' default).
+TARGET_GENERATED_PAIRS = 1 << 20
+
+
+def off_size_note(t, table):
+    """Why a run's figures do not decide the target: its generated family is another size
+    than the target's (pw85 is one fixed family)."""
+    n = getattr(table, "generated_pairs", None)
+    if t.configuration.family == "pw85" or n is None or n == TARGET_GENERATED_PAIRS:
+        return ""
+    return "; on %d pairs, the target is for %d: no verdict" % (n, TARGET_GENERATED_PAIRS)
 
 
 def fastest_within(table, t, default_isa, fixed_iterations_only):
@@ -421,7 +449,9 @@ def target_line(t, table, m):
     speed_target = t.min_speedup > 0
     speedup = table.speedup(m)
     met = within_accuracy(t, m) and (not speed_target or speedup >= t.min_speedup)
-    decided = not speed_target or not math.isnan(speedup)
+    off_size = off_size_note(t, table)
+    decided = ((not speed_target or not math.isnan(speedup)) and accuracy_measured(t, m)
+               and not off_size)
     line = "  %-8s %s: " % (verdict(met) if decided else "-", m.configuration.name())
     if speed_target:
         line += "%s (target >= %gx), " % (speedup_text(speedup), t.min_speedup)
@@ -430,6 +460,7 @@ def target_line(t, table, m):
     line += accuracy_text(t, m)
     if not speed_target:
         line += "; %.3g fallbacks per pair" % m.counter(FALLBACKS_PER_PAIR)
+    line += off_size
     return line + Table.noise_note([m, table.brent_baseline(t.configuration.family)])
 
 
@@ -445,10 +476,11 @@ def print_targets(out, table, default_isa):
     for path, family, threads, min_scaling in THREAD_SCALING_TARGETS:
         c = target_configuration(defaults(path, family), default_isa)
         scaling = table.thread_scaling(c, threads)
+        off_size = off_size_note(Target(c, 0, 0), table)
         out.write("  %-8s %s: threads:%d / threads:1 = %s (target >= %g)" % (
-            "-" if math.isnan(scaling) else verdict(scaling >= min_scaling), c.name(), threads,
-            cell(scaling, "%.2f"), min_scaling))
-        out.write(table.best_scaling_note(c, threads) +
+            "-" if math.isnan(scaling) or off_size else verdict(scaling >= min_scaling),
+            c.name(), threads, cell(scaling, "%.2f"), min_scaling))
+        out.write(table.best_scaling_note(c, threads) + off_size +
                   Table.noise_note([table.find(c), table.find(c.with_threads(threads))]) + "\n")
 
 
@@ -460,10 +492,12 @@ def print_targets_best_in_sweep(out, table, default_isa):
         if m:
             out.write(target_line(t, table, m) + "\n")
             continue
-        out.write("  %-8s %s: %s\n" % (
-            "NOT MET" if candidates else "-",
+        off_size = off_size_note(t, table)
+        out.write("  %-8s %s: %s%s\n" % (
+            "NOT MET" if candidates and not off_size else "-",
             target_configuration(t.configuration, default_isa).name(),
-            "no measured setting is within the accuracy" if candidates else "not measured"))
+            "no measured setting is within the accuracy" if candidates else "not measured",
+            off_size if candidates else ""))
 
 
 # ---------------------------------------------------------------------------

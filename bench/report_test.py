@@ -87,15 +87,20 @@ class BenchSummary(unittest.TestCase):
             % self.isa)
         default = "batch_double/random/isa:%s/iterations:0/threads:1" % self.isa
         speedup = self.rates[default] / self.rates["brent_baseline/random/threads:1"]
+        # Families of 1024 pairs, not the targets' 1048576: figures, no verdicts.
+        off_size = "; on 1024 pairs, the target is for 1048576: no verdict"
         self.assertRegex(
-            targets[5], r"^  (met     |NOT MET ) %s: %s \(target >= 30x\), max rel err %s "
-            r"\(target <= 1e-13\)" % (re.escape(default),
-                                      re.escape("%.1fx brent_baseline" % speedup),
-                                      re.escape("%.2e" % self.counters[default]["max_rel_err"])))
-        self.assertRegex(targets[3], r"^  (met     |NOT MET ) overlap_double/scene/.*misclassified "
-                                     r"\d+ beyond \(\d+ within\) 1e-9 of tangency on the family")
-        self.assertRegex(targets[10], r"^  (met     |NOT MET ) %s: threads:2 / threads:1 = "
-                                     r"\d+\.\d\d \(target >= 1.8\)" % re.escape(default))
+            targets[5], r"^  -        %s: %s \(target >= 30x\), max rel err %s "
+            r"\(target <= 1e-13\)%s" % (re.escape(default),
+                                        re.escape("%.1fx brent_baseline" % speedup),
+                                        re.escape("%.2e" % self.counters[default]["max_rel_err"]),
+                                        re.escape(off_size)))
+        self.assertRegex(targets[3], r"^  -        overlap_double/scene/.*misclassified "
+                                     r"\d+ beyond \(\d+ within\) 1e-9 of tangency on the family"
+                                     r".*%s" % re.escape(off_size))
+        self.assertRegex(targets[10], r"^  -        %s: threads:2 / threads:1 = "
+                                     r"\d+\.\d\d \(target >= 1.8\).*%s"
+                                     % (re.escape(default), re.escape(off_size)))
 
 
 class TradeReport(unittest.TestCase):
@@ -212,8 +217,51 @@ class KnownVerdicts(unittest.TestCase):
                         near_tangent_misclassified_within=2))
         cls.json = os.path.join(ARGS.work_dir, "known.json")
         with open(cls.json, "w", encoding="utf-8") as f:
-            json.dump({"context": {"pwcontact_default_isa": "avx2"}, "benchmarks": runs}, f)
+            json.dump({"context": {"pwcontact_default_isa": "avx2",
+                                   "pwcontact_generated_pairs": "1048576"},
+                       "benchmarks": runs}, f)
         cls.summary = run([sys.executable, REPORT, "summary", cls.json])
+        # The same overlap figures without the near-tangent set, and the full answers on
+        # families of 4096 pairs: neither decides its target.
+        undecided = (
+            benchmark("brent_baseline/random/threads:1", 1e6, max_rel_err=1.3e-15)
+            + benchmark("brent_baseline/scene/threads:1", 1e6, max_rel_err=1.3e-15)
+            + benchmark("batch_double/random/isa:avx2/iterations:0/threads:1", 7e7,
+                        max_rel_err=1.2e-15, **full)
+            + benchmark("overlap_double/scene/isa:avx2/iterations:0/threads:1", 1.2e8,
+                        invalid=0, misclassified_beyond=0, misclassified_within=0)
+            + benchmark("brent_baseline/pw85/threads:1", 1e6, max_rel_err=1.6e-11)
+            + benchmark("overlap_float/pw85/isa:avx2/iterations:0/threads:1", 6e7,
+                        invalid=0, misclassified_beyond=0, misclassified_within=0))
+        cls.undecided_json = os.path.join(ARGS.work_dir, "undecided.json")
+        with open(cls.undecided_json, "w", encoding="utf-8") as f:
+            json.dump({"context": {"pwcontact_default_isa": "avx2",
+                                   "pwcontact_generated_pairs": "4096"},
+                       "benchmarks": undecided}, f)
+        cls.undecided = run([sys.executable, REPORT, "summary", cls.undecided_json])
+
+    def test_figures_that_cannot_decide_a_target_give_no_verdict(self):
+        self.assertEqual(self.undecided.returncode, 0, self.undecided.stderr)
+        lines = self.undecided.stdout.splitlines()
+        off_size = "; on 4096 pairs, the target is for 1048576: no verdict"
+        overlap = [line for line in lines if "overlap_double/scene/isa:avx2" in line
+                   and "target >= 100x" in line]
+        self.assertEqual(overlap, [
+            "  -        overlap_double/scene/isa:avx2/iterations:0/threads:1: 120.0x "
+            "brent_baseline (target >= 100x), misclassified 0 beyond (0 within) 1e-9 of "
+            "tangency on the family, - on nan near-tangent pairs (target: none beyond)"
+            + off_size])
+        # pw85 is one size: only the missing near-tangent set leaves it undecided.
+        self.assertIn(
+            "  -        overlap_float/pw85/isa:avx2/iterations:0/threads:1: 60.0x brent_baseline "
+            "(target >= 55x), misclassified 0 beyond (0 within) 1e-9 of tangency on the "
+            "family, - on nan near-tangent pairs (target: none beyond)", lines)
+        full = [line for line in lines if line.startswith("  ")
+                and "batch_double/random/isa:avx2/iterations:0/threads:1: 70.0x" in line]
+        self.assertEqual(len(full), 2, lines)  # the 30x and the 60x targets
+        for line in full:
+            self.assertTrue(line.startswith("  -        "), line)
+            self.assertTrue(line.endswith(off_size), line)
 
     def test_targets_read_as_specified(self):
         self.assertEqual(self.summary.returncode, 0, self.summary.stderr)
