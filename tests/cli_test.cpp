@@ -1514,6 +1514,21 @@ TEST_F(cli, TheShellsSetUpIsKeptAndAFailedRunLeavesNoOutput) {
       run("screen --outputs counts --write-gsd full.gsd -o /dev/full " + quoted(gsd));
   EXPECT_EQ(full.exit_status, 1) << full.err;
   EXPECT_FALSE(fs::exists(path("full.gsd")));
+  // The frame and the pairs to one place (was: the binary frame appended to
+  // the text pairs on standard output): refused before anything is read.
+  for (const std::string same : {"--write-gsd - ", "--write-gsd same.txt -o same.txt "}) {
+    const Outcome mixed = run("screen " + same + quoted(gsd));
+    EXPECT_EQ(mixed.exit_status, 2) << same;
+    EXPECT_EQ(mixed.out, "") << same;
+    EXPECT_TRUE(contains(mixed.err, "give the GSD frame and the pairs different places"))
+        << mixed.err;
+    EXPECT_FALSE(fs::exists(path("same.txt")));
+  }
+  // The frame to standard output with the pairs in a file: allowed.
+  const Outcome apart = run("screen --write-gsd - -o apart.txt " + quoted(gsd));
+  EXPECT_EQ(apart.exit_status, 0) << apart.err;
+  EXPECT_EQ(apart.out.substr(0, 8), std::string("\xdf\x65\xdf\x65\xdf\x65\xdf\x65", 8))
+      << "a GSD file begins with its magic number, 0x65DF65DF65DF65DF little-endian";
   // Repeated --box: the last given, whichever its form (was: --box= won).
   write_file("two.txt", "0 0 0 1 1 1 1 0 0 0\n9 0 0 1 1 1 1 0 0 0\n");
   const Outcome boxes = run("screen --format axes --box=10,10,10 --box 30 30 30 two.txt");

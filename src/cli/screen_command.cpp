@@ -202,7 +202,7 @@ OptionParser screen_parser(ScreenCommandOptions& options) {
                    "with a gsd input: also write OUT, a GSD file of the frame screened (every "
                    "chunk it has or takes from frame 0) with log/particles/overlaps, the number "
                    "of pairs each particle is in, for OVITO to colour by (like -o, it appears "
-                   "only when the run succeeds)",
+                   "only when the run succeeds; - is standard output, when -o is a file)",
                    [&options](std::string_view path) {
                      if (path.empty()) throw std::invalid_argument("needs a file name");
                      options.gsd_output = path;
@@ -361,6 +361,13 @@ bool parse_screen(const Arguments& arguments, ScreenCommand& command) {
   if (!options.gsd_output.empty() && command.format != SceneFormat::gsd)
     parser.fail(std::string("option --write-gsd: for a gsd input, not ") +
                 format_name(command.format));
+  // (Both to standard output appended the binary frame to the text lines.)
+  if (!options.gsd_output.empty() && options.gsd_output == options.output)
+    parser.fail("option --write-gsd: " +
+                std::string(options.output == "-" ? "the pairs go to standard output"
+                                                  : "-o names the same file") +
+                "; give the GSD frame and the " + output_name(options.outputs) +
+                " different places");
   if (!is_text(command.format) && options.input == "-")
     parser.fail(std::string("a ") + format_name(command.format) +
                 " input is read from a file, not standard input: give FILE");
@@ -517,19 +524,22 @@ ExitStatus run_screen_on(const Arguments& arguments, const ScreenRanks* ranks) {
   if (!root) return ExitStatus::success;
 
   const Stopwatch writing;
-  write_output(*output, options.outputs, options.with_mu2, pairs, scene.particles.size(), threads);
+  // The GSD frame is made before anything is written: a frame that cannot
+  // be made (a chunk of the input it cannot copy) then fails the run before
+  // the pairs reach standard output, which cannot be taken back.
+  std::ostringstream gsd_bytes;
   if (gsd_output) {
-    std::ostringstream bytes;
     try {
       write_gsd_frame_with_values(options.input, options.frame ? *options.frame : -1, "overlaps",
-                                  pair_counts(pairs, scene.particles.size()), bytes);
+                                  pair_counts(pairs, scene.particles.size()), gsd_bytes);
     } catch (const std::invalid_argument& e) {
       throw CommandError(ExitStatus::usage_error, e.what());
     } catch (const std::runtime_error& e) {
       throw CommandError(ExitStatus::io_error, e.what());
     }
-    gsd_output->write(bytes.str());
   }
+  write_output(*output, options.outputs, options.with_mu2, pairs, scene.particles.size(), threads);
+  if (gsd_output) gsd_output->write(gsd_bytes.str());
   // The main output first: if it cannot be written, the GSD file (still a
   // temporary) is removed with it, as --help promises ("appears only when
   // the run succeeds"; committed first, it outlived a failed run).
