@@ -743,6 +743,20 @@ TEST_F(cli, HelpListsEveryStatusCodeAndEveryOption) {
     EXPECT_TRUE(contains(screen_help, text)) << text << "\n" << screen_help;
 }
 
+TEST_F(cli, HelpLinesFitInATerminalOf80Columns) {
+  for (const char* command :
+       {"--help", "help contact", "help screen", "help pairs", "help demo", "help mc"}) {
+    const Outcome help = run(command);
+    ASSERT_EQ(help.exit_status, 0) << command;
+    std::istringstream lines(help.out);
+    int number = 0;
+    for (std::string line; std::getline(lines, line);) {
+      ++number;
+      EXPECT_LE(line.size(), 79u) << command << ", line " << number << ": " << line;
+    }
+  }
+}
+
 TEST_F(cli, VersionIsPrinted) {
   const Outcome result = run("--version");
   EXPECT_EQ(result.exit_status, 0);
@@ -789,7 +803,9 @@ INSTANTIATE_TEST_SUITE_P(
         "screen --box 1 1 1 1 a.txt", "screen --box 10 10 10 0.5 0 a.txt",
         "screen --box=1,1,1,1,1,1,1 a.txt", "screen --box 10 10 10 0 0 inf a.txt",
         "screen --outputs all a.txt", "screen --outputs pairs,counts a.txt",
-        "screen --write-gsd o.gsd a.txt", "screen --write-gsd= b.gsd",
+        "screen --write-gsd o.gsd a.txt", "screen --write-gsd= b.gsd", "screen --columns= b.dump",
+        // --version and --help take nothing after them (both were ignored)
+        "--version extra", "-h contact", "--help screen",
         // Bad values of the options of the answer and the arithmetic
         "contact --mode both", "contact --precision auto", "contact --precision",
         "contact --iterations automatic", "contact --iterations -1", "contact --accuracy best",

@@ -132,8 +132,8 @@ ExitStatus run_demo(const Arguments& arguments) {
 
 }  // namespace
 
-const Subcommand demo_subcommand = {
-    "demo", "the main job on an embedded default: a scene of 1M spheroids screened for overlaps",
-    demo_options_help, run_demo, parse_demo_only};
+const Subcommand demo_subcommand = {"demo",
+                                    "the main job on an embedded default: 1M spheroids screened",
+                                    demo_options_help, run_demo, parse_demo_only};
 
 }  // namespace pwcontact::cli

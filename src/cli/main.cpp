@@ -33,7 +33,7 @@ std::string subcommand_names() {
 }
 
 std::string synopsis() {
-  return "Usage: pwcontact SUBCOMMAND [OPTION]... [OPERAND]...   (SUBCOMMAND: " +
+  return "Usage: pwcontact SUBCOMMAND [OPTION]... [OPERAND]...\n       (SUBCOMMAND: " +
          subcommand_names() + ")\n       pwcontact help [SUBCOMMAND] | --help | --version\n";
 }
 
@@ -62,6 +62,16 @@ ExitStatus run(const Arguments& arguments) {
   const std::string_view first = arguments.front();
   const Arguments rest(arguments.begin() + 1, arguments.end());
 
+  // (--version and --help take nothing after them: `pwcontact -h contact`
+  // printed the overview, not contact's help, and said nothing.)
+  if ((first == "--version" || first == "-h" || first == "--help") && !rest.empty())
+    throw CommandError(
+        ExitStatus::usage_error,
+        std::string(first) + " takes no argument, got '" + std::string(rest.front()) + "'" +
+            (first == "--version"
+                 ? std::string()
+                 : " (for a subcommand's help: pwcontact help " + std::string(rest.front()) + ")"),
+        usage());
   if (first == "--version") {
     std::puts("pwcontact " PWCONTACT_VERSION);
     return ExitStatus::success;

@@ -271,8 +271,7 @@ ExitStatus run_mc(const Arguments& arguments) {
 }  // namespace
 
 const Subcommand mc_subcommand = {
-    "mc",
-    "hard-ellipsoid Monte Carlo: spheroids compressed to a packing fraction, never overlapping",
-    mc_options_help, run_mc, parse_mc_only};
+    "mc", "hard-ellipsoid Monte Carlo: spheroids compressed, never overlapping", mc_options_help,
+    run_mc, parse_mc_only};
 
 }  // namespace pwcontact::cli

@@ -91,6 +91,8 @@ LammpsColumns parse_columns(std::string_view text) {
   static const char* const names[10] = {"x",      "y",     "z",     "shapex", "shapey",
                                         "shapez", "quatw", "quati", "quatj",  "quatk"};
   LammpsColumns columns;
+  if (text.empty())  // (--columns= was taken as the usual names, silently)
+    throw std::invalid_argument("needs NAME=COLUMN,... (without it, the usual names are taken)");
   std::string* targets[10] = {
       &columns.position[0],   &columns.position[1],  &columns.position[2],   &columns.shape[0],
       &columns.shape[1],      &columns.shape[2],     &columns.quaternion[0], &columns.quaternion[1],
@@ -567,7 +569,7 @@ ExitStatus run_screen(const Arguments& arguments) { return run_screen_on(argumen
 }  // namespace
 
 const Subcommand screen_subcommand = {
-    "screen", "every pair of a scene of ellipsoids with mu < cutoff (overlaps, neighbour lists)",
+    "screen", "every pair of a scene with mu < cutoff (overlaps, neighbour lists)",
     screen_options_help, run_screen, parse_screen_only};
 
 ExitStatus run_screen_over(const Arguments& arguments, const ScreenRanks& ranks) {
