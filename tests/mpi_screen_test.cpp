@@ -444,6 +444,21 @@ int main(int argc, char** argv) {
                                          options, out);
           },
           "different batch precisions");
+    // So does the instruction set each rank resolves (FMA or not): one rank
+    // on the portable path beside the others' automatic choice (where that
+    // is not the portable path itself).
+    if (ranks > 1 && pwcontact::resolve_isa(pwcontact::Isa::automatic) != pwcontact::Isa::fallback)
+      expect_error(
+          "an instruction set that differs between ranks",
+          [&] {
+            ParticleStore s;
+            ScreenOptions options;
+            if (rank == 1) options.batch.isa = pwcontact::Isa::fallback;
+            pwcontact::mpi::TaggedPairs out;
+            pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, std::vector<std::uint64_t>{}, cube,
+                                         options, out);
+          },
+          "different instruction sets (from ");
     // A box made field by field with a NaN, on the last rank only: a NaN
     // drops out of the ranks' min and max, and that rank alone threw (the
     // others waited for it for ever).

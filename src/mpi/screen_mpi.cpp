@@ -262,14 +262,25 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     error = "a periodic box needs positive, finite lengths and finite tilts";
   else
     error = particles.unset_message();
+  // The instruction set the solve will run on (FMA or not changes mu^2's
+  // last bits: SSE2 and AVX2 differ on half of random pairs), resolved here
+  // so that a rank that cannot resolve it fails with the others.
+  Isa isa = Isa::fallback;
+  if (error.empty()) try {
+      isa = resolve_isa(options.batch.isa);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
   throw_if_any(comm, error);
   // The box and the options that decide the pairs, the same on every rank:
   // ranks that differ would pair particles by different rules, or wait for
   // each other in calls the others do not make.
-  // (The solve's options too: they decide mu^2's last bits, and so the
-  // pairs within rounding of the cutoff.)
+  // (The solve's options too, and the instruction set each rank resolves:
+  // they decide mu^2's last bits, and so the pairs within rounding of the
+  // cutoff. Ranks on CPUs of different instruction sets are refused unless
+  // the same one is asked of all, e.g. PWCONTACT_ISA=sse2.)
   {
-    constexpr int count = 14;
+    constexpr int count = 15;
     const double mine[count] = {box.length[0],
                                 box.length[1],
                                 box.length[2],
@@ -283,22 +294,29 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
                                 double(options.batch.iterations),
                                 double(static_cast<int>(options.batch.precision)),
                                 double(static_cast<int>(options.batch.accuracy)),
-                                double(static_cast<int>(options.batch.formulation))};
+                                double(static_cast<int>(options.batch.formulation)),
+                                double(static_cast<int>(isa))};
     double low[count], high[count];
     MPI_Allreduce(mine, low, count, MPI_DOUBLE, MPI_MIN, comm);
     MPI_Allreduce(mine, high, count, MPI_DOUBLE, MPI_MAX, comm);
-    const char* names[count] = {"box lengths",       "box lengths",       "box lengths",
-                                "box tilts",         "box tilts",         "box tilts",
-                                "box kinds",         "box kinds",         "cutoffs",
-                                "with_mu2 settings", "batch iterations",  "batch precisions",
-                                "batch accuracies",  "batch formulations"};
+    const char* names[count] = {"box lengths",       "box lengths",        "box lengths",
+                                "box tilts",         "box tilts",          "box tilts",
+                                "box kinds",         "box kinds",          "cutoffs",
+                                "with_mu2 settings", "batch iterations",   "batch precisions",
+                                "batch accuracies",  "batch formulations", "instruction sets"};
     for (int k = 0; k < count; ++k)
       if (low[k] != high[k]) {
         // (Thrown on every rank alike: every rank has the same low and high.)
+        auto value = [k](double v) {
+          return k == count - 1 ? std::string(isa_name(static_cast<Isa>(int(v))))
+                                : std::to_string(v);
+        };
         throw std::invalid_argument(std::string("screen_pairs (MPI): the ranks give different ") +
-                                    names[k] + " (from " + std::to_string(low[k]) + " to " +
-                                    std::to_string(high[k]) +
-                                    "); every rank must pass the same box and options");
+                                    names[k] + " (from " + value(low[k]) + " to " + value(high[k]) +
+                                    "); every rank must pass the same box and options" +
+                                    (k == count - 1 ? " and run the same instruction set "
+                                                      "(PWCONTACT_ISA names one for all)"
+                                                    : ""));
       }
   }
 
