@@ -671,6 +671,65 @@ TEST(HardParticleMC, CompressesWithoutEverOverlappingAndTheLastStateHasNone) {
   EXPECT_EQ(mc.overlapping_pairs(), 0u);
 }
 
+TEST(HardParticleMC, EveryFaceBetweenCellsIsCrossedWithAnOddNumberOfCells) {
+  // 256 hard spheres (diameter 1) on an fcc lattice at packing 0.3: 7 cells
+  // along each axis, 64 domains, checkerboard sweeps. With the grouping
+  // shifted by 0 or 1 cell only, the face between cells 5 and 6 was between
+  // domains in every sweep and no centre ever crossed it.
+  const int k = 4;
+  const std::size_t n = 4 * k * k * k;
+  const double length = std::cbrt(double(n) * M_PI / 6 / 0.3), a = length / k;
+  const double base[4][3] = {{0, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+  std::vector<std::array<double, 3>> centre;
+  for (int x = 0; x < k; ++x)
+    for (int y = 0; y < k; ++y)
+      for (int z = 0; z < k; ++z)
+        for (const auto& b : base)
+          centre.push_back({(x + b[0] + 0.25) * a, (y + b[1] + 0.25) * a, (z + b[2] + 0.25) * a});
+  const Box box = Box::periodic_box(length, length, length);
+  const std::array<int, 3> cells = [&] {
+    ParticleStore s;
+    for (const auto& c : centre) s.add_axes(c, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+    return MovingScene(s, box).cells();  // (the grid the Monte Carlo scene makes)
+  }();
+  ASSERT_EQ(cells[0] % 2, 1) << cells[0] << " cells: the case needs an odd count";
+  ASSERT_TRUE(cells[1] == cells[0] && cells[2] == cells[0]);
+  pwcontact::HardParticleMCOptions options;
+  options.translation = 0.12;
+  options.rotation = 0;
+  options.adapt_steps = false;
+  options.seed = 7;
+  options.threads = 1;
+  pwcontact::HardParticleMC mc(box, centre, std::vector<std::array<double, 3>>(n, {0.5, 0.5, 0.5}),
+                               std::vector<std::array<double, 4>>(n, {1, 0, 0, 0}), options);
+  // Crossings of each face (x = c L / cells along each axis), counted from
+  // the centres before and after each sweep (they are kept unwrapped).
+  std::vector<std::array<std::size_t, 3>> crossings(std::size_t(cells[0]), {0, 0, 0});
+  std::size_t left_domain = 0;
+  auto wrapped_count = [&](double x, int c) {
+    return std::floor((x - c * length / cells[0]) / length);
+  };
+  for (int sweep = 0; sweep < 400; ++sweep) {
+    std::vector<std::array<double, 3>> before(n);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d) before[i][std::size_t(d)] = mc.particles().centre(d)[i];
+    left_domain += mc.sweep().left_domain;
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < cells[0]; ++c)
+        for (int d = 0; d < 3; ++d)
+          crossings[std::size_t(c)][std::size_t(d)] +=
+              wrapped_count(mc.particles().centre(d)[i], c) !=
+              wrapped_count(before[i][std::size_t(d)], c);
+  }
+  EXPECT_GT(left_domain, 0u) << "the checkerboard path (the one-at-a-time path has no domains)";
+  for (int c = 0; c < cells[0]; ++c)
+    for (int d = 0; d < 3; ++d)
+      EXPECT_GT(crossings[std::size_t(c)][std::size_t(d)], 0u)
+          << "the face between cells " << (c + cells[0] - 1) % cells[0] << " and " << c
+          << " along axis " << d;
+  EXPECT_EQ(mc.overlapping_pairs(), 0u);
+}
+
 TEST(HardParticleMC, CheckerboardSweepsGiveTheSameStateForEveryThreadCount) {
   // 2000 spheroids at packing ~0.06: 9 x 9 x 9 domains, checkerboard sweeps.
   std::vector<std::vector<double>> centres;

@@ -6,8 +6,9 @@
 // command `pwcontact mc`.
 //
 // A sweep: the scene's cells grouped into domains of 2 x 2 x 2 cells, the
-// grouping shifted by a random cell along each axis every sweep (so that no
-// face between domains stays in place); the domains coloured so that two of
+// grouping shifted by a random number of cells along each axis every sweep,
+// uniform over the axis (so that no face between domains stays in place,
+// with an odd number of cells too); the domains coloured so that two of
 // one colour are a domain apart (2 colours along an axis, a third for the
 // last domain of an odd count). Colour by colour, the domains of the colour
 // run in parallel (OpenMP threads), each its own trials one after another:

@@ -186,11 +186,15 @@ SweepReport HardParticleMC::sweep() {
   if (n == 0) return {};
   const std::array<int, 3> cells = scene.cells();
   const std::uint64_t sweep_seed = mix(s.options.seed, s.sweeps);
-  // The grouping of cells into domains, shifted by 0 or 1 cell per axis.
+  // The grouping of cells into domains, shifted by a random number of cells
+  // along each axis, uniform over the axis. (A shift of 0 or 1 left, with an
+  // odd number of cells, the face between the last two cells between domains
+  // under both: no centre ever crossed it, and a density step across it
+  // relaxed only by particles going round the whole box.)
   std::mt19937_64 shift_engine(mix(sweep_seed, 0x5417));
   int offset[3], domains[3];
   for (int k = 0; k < 3; ++k) {
-    offset[k] = int(shift_engine() & 1);
+    offset[k] = int(shift_engine() % std::uint64_t(cells[k]));
     domains[k] = (cells[k] + 1) / 2;
   }
   auto domain_along = [&](int k, int c) { return ((c + offset[k]) % cells[k]) / 2; };
