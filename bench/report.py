@@ -399,14 +399,16 @@ def off_size_note(t, table):
 def fastest_within(table, t, default_isa, fixed_iterations_only):
     """The fastest measured configuration of the target's path, family and accuracy, with 1
     thread on the default instruction set, that is within its accuracy (with
-    `fixed_iterations_only`, among fixed iteration counts); and how many were measured."""
+    `fixed_iterations_only`, among fixed iteration counts); and how many were measured with
+    every figure the target's accuracy is judged by (the others are left out)."""
     wanted = target_configuration(t.configuration, default_isa)
     best, considered = None, 0
     for m in table.rows:
         c = m.configuration
         if (c.path != wanted.path or c.family != wanted.family or c.accuracy != wanted.accuracy
                 or c.isa != wanted.isa or c.threads != 1
-                or (fixed_iterations_only and c.iterations == 0)):
+                or (fixed_iterations_only and c.iterations == 0)
+                or not accuracy_measured(t, m)):
             continue
         considered += 1
         if not within_accuracy(t, m):

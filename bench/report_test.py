@@ -239,6 +239,10 @@ class KnownVerdicts(unittest.TestCase):
                                    "pwcontact_generated_pairs": "4096"},
                        "benchmarks": undecided}, f)
         cls.undecided = run([sys.executable, REPORT, "summary", cls.undecided_json])
+        cls.undecided_trade = run([sys.executable, REPORT, "trade", cls.undecided_json,
+                                   "--csv=" + os.path.join(ARGS.work_dir, "undecided.csv"),
+                                   "--markdown=" + os.path.join(ARGS.work_dir, "undecided.md"),
+                                   "--no-plot"])
 
     def test_figures_that_cannot_decide_a_target_give_no_verdict(self):
         self.assertEqual(self.undecided.returncode, 0, self.undecided.stderr)
@@ -256,6 +260,11 @@ class KnownVerdicts(unittest.TestCase):
             "  -        overlap_float/pw85/isa:avx2/iterations:0/threads:1: 60.0x brent_baseline "
             "(target >= 55x), misclassified 0 beyond (0 within) 1e-9 of tangency on the "
             "family, - on nan near-tangent pairs (target: none beyond)", lines)
+        # The best setting within the accuracy: none decided without the near-tangent set
+        # (it said NOT MET, "no measured setting is within the accuracy").
+        self.assertEqual(self.undecided_trade.returncode, 0, self.undecided_trade.stderr)
+        self.assertIn("  -        overlap_float/pw85/isa:avx2/iterations:0/threads:1: not measured",
+                      self.undecided_trade.stdout.splitlines())
         full = [line for line in lines if line.startswith("  ")
                 and "batch_double/random/isa:avx2/iterations:0/threads:1: 70.0x" in line]
         self.assertEqual(len(full), 2, lines)  # the 30x and the 60x targets

@@ -68,3 +68,12 @@ if(status EQUAL 0 OR NOT times EQUAL 1)
                       "${error}")
 endif()
 message(STATUS "a missing input: status ${status}, named once")
+# Its help fits a terminal of 80 columns, as `pwcontact`'s does (cli_test).
+execute_process(COMMAND ${mpirun} ${PWCONTACT_MPI_CLI} --help
+                RESULT_VARIABLE status OUTPUT_VARIABLE help)
+string(REPEAT "[^\n]" 80 eighty_columns)
+string(REGEX MATCH "${eighty_columns}[^\n]*" long "${help}")
+if(NOT status EQUAL 0 OR help STREQUAL "" OR long)
+  message(FATAL_ERROR "pwcontact-mpi --help: status ${status}, a line over 79 columns: '${long}'")
+endif()
+message(STATUS "pwcontact-mpi --help: every line within 79 columns")

@@ -1532,7 +1532,11 @@ TEST_F(cli, TheShellsSetUpIsKeptAndAFailedRunLeavesNoOutput) {
   EXPECT_FALSE(fs::exists(path("full.gsd")));
   // The frame and the pairs to one place (was: the binary frame appended to
   // the text pairs on standard output): refused before anything is read.
-  for (const std::string same : {"--write-gsd - ", "--write-gsd same.txt -o same.txt "}) {
+  // (One file by two names too: ./same.txt beside same.txt, -o /dev/stdout
+  // beside --write-gsd -.)
+  for (const std::string same :
+       {"--write-gsd - ", "--write-gsd same.txt -o same.txt ",
+        "--write-gsd ./same.txt -o same.txt ", "--write-gsd - -o /dev/stdout "}) {
     const Outcome mixed = run("screen " + same + quoted(gsd));
     EXPECT_EQ(mixed.exit_status, 2) << same;
     EXPECT_EQ(mixed.out, "") << same;

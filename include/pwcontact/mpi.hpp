@@ -85,8 +85,9 @@ struct DistributedReport {
 // The local screen's r12 of a pair is the single-process one to the bit,
 // whatever either screen's cell lists (r12 is the plain difference of the
 // wrapped centres plus the same lattice vector in both), and so is mu^2 when
-// every rank passes the same options. The box, the cutoff, with_mu2 and the
-// solve's options (iterations, precision, accuracy, formulation) are
+// every rank passes the same options. The box, the cutoff, with_mu2, the
+// solve's options (iterations, precision, accuracy, formulation) and the
+// instruction set each rank resolves (FMA or not changes the last bits) are
 // compared across the ranks: ranks that differ are refused on every rank.
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint64_t>& tags, const Box& box,

@@ -55,7 +55,8 @@ OptionParser mc_parser(McOptions& options) {
       "the hoomd schema as HOOMD-blue reads it: float32 positions, orientations and box, "
       "centres wrapped into the box centred on the origin, every pair of the rounded scene "
       "at mu >= 1 + 1e-6 (where rounding brings a pair closer, centres and box are scaled "
-      "up by the least factor that keeps it, said on standard error); types A0 .. A15 with "
+      "up by a factor of about the least that keeps it, said on standard error); types A0 .. "
+      "A15 with "
       "their Ellipsoid shapes) "
       "or text "
       "(any other name: 'pwcontact screen --format axes' lines, x y z a b c qw qx qy qz, "
@@ -259,9 +260,19 @@ ExitStatus run_mc(const Arguments& arguments) {
                mc.packing(), mc.sweeps(), describe_seconds(clock.seconds()).c_str(),
                proposed ? double(accepted) / double(proposed) : 0.0);
   if (out) {
-    if (ends_with(options.output, ".gsd"))
-      write_gsd(mc, *out, mc_options.threads);
-    else
+    if (ends_with(options.output, ".gsd")) {
+      try {
+        write_gsd(mc, *out, mc_options.threads);
+      } catch (const CommandError&) {
+        throw;  // (the output's own failures keep their status)
+      } catch (const std::logic_error& e) {
+        // (The rounding to float32 and its screens: after a run that
+        // succeeded, a failure of the run's own output, exit status 3.)
+        throw CommandError(ExitStatus::failed, e.what());
+      } catch (const std::runtime_error& e) {
+        throw CommandError(ExitStatus::failed, e.what());
+      }
+    } else
       write_text(mc, *out, options.output);
     std::fprintf(stderr, "pwcontact mc: wrote %s\n", options.output.c_str());
   }

@@ -27,8 +27,9 @@ namespace {
 const char* const usage_text =
     "Usage: mpirun -np N pwcontact-mpi screen [OPTION]... [FILE]\n"
     "       pwcontact-mpi --help | --version\n"
-    "`pwcontact screen` over the ranks of an MPI run: the same options, the same output;\n"
-    "rank 0 reads FILE and writes the results, every rank screens its subdomain\n"
+    "`pwcontact screen` over the ranks of an MPI run: the same options, the same\n"
+    "output; rank 0 reads FILE and writes the results, every rank screens its\n"
+    "subdomain\n"
     "(see 'pwcontact help screen' for the options).\n";
 
 // What the distributed screen did, for the summary (the slowest rank's
