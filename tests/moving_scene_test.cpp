@@ -493,7 +493,7 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
       call();
       ADD_FAILURE() << "no exception, expected one naming " << text;
     } catch (const std::exception& e) {
-      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what() << " / " << text;
     }
   };
   expect_message([&] { scene.move(100, good); }, "particle 100 does not exist");
@@ -511,6 +511,8 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
       "periodic box is too small");
   const std::uint32_t index[2] = {1, 7};
   const Particle moves[2] = {good, scene.trial_axes({0, 0, 0}, {2, 1, 1}, {1, 0, 0, 0})};
+  // (A batch names the move at fault.)
+  expect_message([&] { scene.move_many(index, moves, 2); }, "move_many, move 1");
   expect_message([&] { scene.move_many(index, moves, 2); }, "periodic box is too small");
   ParticleStore other;
   other.add_type({0.1, 0.1, 0.1});
@@ -520,6 +522,31 @@ TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
         scene.insert(other.particle_typed({0, 0, 0}, 1, {1, 0, 0, 0}));
       },
       "type 1 does not exist");
+  // Another store's type 0 is another shape: it went in as this scene's
+  // type 0 (a sphere of 0.1 stored as the 0.5 x 0.2 x 0.2 type).
+  for (const std::uint32_t at : {0u, 1u}) {
+    const Particle foreign = other.particle_typed({1, 1, 1}, 0, {1, 0, 0, 0});
+    expect_message([&] { scene.insert(foreign); }, "whose shape is not that type's here");
+    expect_message([&] { scene.move(at, foreign); }, "whose shape is not that type's here");
+    const std::uint32_t one[1] = {at};
+    expect_message([&] { scene.move_many(one, &foreign, 1); }, "move_many, move 0");
+    EXPECT_FALSE(scene.move_in_own_cells(at, foreign));
+  }
+  // An exclude that is neither none nor a particle (it was taken as none).
+  expect_message([&] { scene.overlaps(good, 100); }, "exclude 100 is neither none");
+  expect_message([&] { scene.overlaps(good, -5); }, "exclude -5 is neither none");
+  expect_message([&] { scene.neighbors(good, 1.2, false, 100); }, "exclude 100");
+  {
+    const Particle trials[3] = {good, good, good};
+    const std::int64_t excluded[3] = {0, MovingScene::none, 1000};
+    std::int64_t first[3];
+    expect_message([&] { scene.overlaps(trials, excluded, 3, first); }, "trial 2: exclude 1000");
+  }
+  // A cutoff whose square underflows is refused saying so (it said "got
+  // 0.000000" of a positive, finite 1e-200).
+  expect_message([&] { scene.neighbors(good, 1e-200); },
+                 "its square a normal number (mu^2 is compared with it), got 1e-200");
+  expect_message([&] { scene.cell_of({NAN, 0, 0}); }, "not finite");
   // Unchanged: the same particles, and the same answers as a fresh scene's.
   EXPECT_EQ(scene.size(), 100u);
   for (int k = 0; k < 3; ++k) EXPECT_EQ(scene.particles().centre(k), s.centre(k));
@@ -728,6 +755,16 @@ TEST(HardParticleMC, EveryFaceBetweenCellsIsCrossedWithAnOddNumberOfCells) {
           << "the face between cells " << (c + cells[0] - 1) % cells[0] << " and " << c
           << " along axis " << d;
   EXPECT_EQ(mc.overlapping_pairs(), 0u);
+}
+
+TEST(HardParticleMC, OrientationsAreUnitQuaternions) {
+  // (A quaternion of norm 2 was kept as given, and written so to GSD.)
+  const pwcontact::HardParticleMC mc(
+      Box::periodic_box(10, 10, 10), {{1, 1, 1}, {5, 5, 5}}, {{0.5, 0.3, 0.3}, {0.5, 0.3, 0.3}},
+      {{2, 0, 0, 0}, {0.6, 0.8, 0, 0}}, pwcontact::HardParticleMCOptions{});
+  EXPECT_EQ(mc.orientation()[0], (std::array<double, 4>{1, 0, 0, 0}));
+  EXPECT_EQ(mc.orientation()[1], (std::array<double, 4>{0.6, 0.8, 0, 0}))
+      << "a quaternion unit to rounding is kept as given";
 }
 
 TEST(HardParticleMC, CheckerboardSweepsGiveTheSameStateForEveryThreadCount) {

@@ -56,10 +56,11 @@ struct SweepReport {
 
 class HardParticleMC {
  public:
-  // Particles by centre, semi-axes and unit quaternion (w, x, y, z), in a
-  // periodic box. Throws std::invalid_argument for sizes that differ, bad
-  // particles (naming them), an open box, or options out of range. Does not
-  // require the state to be free of overlaps (overlapping_pairs() tells).
+  // Particles by centre, semi-axes and quaternion (w, x, y, z; normalised,
+  // those unit to rounding kept as given), in a periodic box. Throws
+  // std::invalid_argument for sizes that differ, bad particles (naming
+  // them), an open box, or options out of range. Does not require the state
+  // to be free of overlaps (overlapping_pairs() tells).
   HardParticleMC(const Box& box, std::vector<std::array<double, 3>> centre,
                  std::vector<std::array<double, 3>> semi_axes,
                  std::vector<std::array<double, 4>> orientation,

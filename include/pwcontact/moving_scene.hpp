@@ -143,7 +143,8 @@ class MovingScene {
   // (nor queries reach them). Applies the move and returns true when it
   // needs no more than its two cells; returns false, changing nothing, when
   // it would need more (a rebuild: a full cell, a particle beyond the cells'
-  // reach, an open box's region left) or the input is not valid for move():
+  // reach, an open box's region left or entered) or the input is not valid
+  // for move():
   // then call move() from one thread. (Not counted in counters().)
   bool move_in_own_cells(std::size_t i, const Particle& p);
 

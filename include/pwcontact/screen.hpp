@@ -170,8 +170,15 @@ class ParticleStore {
   // Particle i as stored (i < size(); std::out_of_range otherwise).
   Particle particle_at(std::size_t i) const;
   // Stores a particle made above at index i (< size()), or at the end.
-  // (A typed particle's type must exist in this store.)
+  // (A typed particle's type must exist in this store, with its shape: see
+  // check_type.)
   void set_particle(std::size_t i, const Particle& p);
+  // std::invalid_argument (its message begins with `who`) unless p is
+  // untyped or of a type of this store with that type's shape (its radii,
+  // and the trace of Q within 1e-12: a particle another store made with
+  // another shape under the same type id was taken as this store's type).
+  void check_type(const Particle& p, const std::string& who) const;
+  bool type_fits(const Particle& p) const noexcept;  // (check_type without the exception)
   void add_particle(const Particle& p);
   // Removes particle i by moving the last particle into its place
   // (std::out_of_range for i >= size()).

@@ -728,8 +728,10 @@ class HardParticleMC:
 
     positions (N, 3), semi_axes (N, 3 | 3,), orientations (N, 4 | 4, | None:
     identity), box: a periodic three-dimensional Box (or what Box.from_box
-    takes). The start must not overlap (a sweep keeps what it is given;
-    compress() raises RuntimeError on an overlapping state). packing: the
+    takes). The start may overlap (overlapping_pairs() tells): a sweep never
+    makes an overlap but keeps those it is given, and compress() raises
+    RuntimeError on an overlapping state. Orientations are normalised (those
+    unit to rounding kept as given). packing: the
     fraction compress_to_packing() reaches; translation and rotation: the
     largest step along each axis and the largest turn (radians), scaled
     towards 30 % acceptance after each sweep when adapt_steps.

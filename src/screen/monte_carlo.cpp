@@ -128,7 +128,14 @@ HardParticleMC::HardParticleMC(const Box& box, std::vector<std::array<double, 3>
   s.options = options;
   s.translation = options.translation;
   s.rotation = options.rotation;
-  s.make_scene(centre);
+  s.make_scene(centre);  // (refuses zero and non-finite quaternions, naming the particle)
+  // Unit quaternions, as orientation() promises and a GSD file wants (a
+  // quaternion already unit to rounding is kept as given, bit for bit).
+  for (auto& q : s.orientation) {
+    const double norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    if (std::abs(norm2 - 1) > 8 * std::numeric_limits<double>::epsilon())
+      for (double& x : q) x /= std::sqrt(norm2);
+  }
   for (const auto& a : s.semi_axes) s.volume += 4.0 / 3.0 * pi * a[0] * a[1] * a[2];
 }
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "kernels/kernel_api.hpp"
+#include "number_text.hpp"
 #include "pair_overlap_solver.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/moving_scene.hpp"
@@ -19,6 +20,8 @@
 #include "thread_count.hpp"
 
 namespace pwcontact {
+
+using detail::number_text;
 namespace {
 
 // What the coarse test reads of a member, its centre wrapped into the box
@@ -127,8 +130,8 @@ struct MovingScene::Impl {
   std::array<double, 3> widths = {0, 0, 0};
   void check_box(double radius, double cutoff, const char* who) const {
     check_reach(cutoff * 2 * radius, who, "", [&] {
-      return "cutoff * 2 R = " + std::to_string(cutoff * 2 * radius) + " (cutoff " +
-             std::to_string(cutoff) + ", bounding radius " + std::to_string(radius);
+      return "cutoff * 2 R = " + number_text(cutoff * 2 * radius) + " (cutoff " +
+             number_text(cutoff) + ", bounding radius " + number_text(radius);
     });
   }
   // A reach that must fit twice across every periodic axis; `terms()` says
@@ -346,6 +349,14 @@ struct MovingScene::Impl {
       throw std::out_of_range(std::string(who) + ": " + particle_name(i) + " does not exist (" +
                               std::to_string(store.size()) + " particles)");
   }
+  // A query's `exclude`: none or a particle (an index out of range was taken
+  // as none, silently, where Python refused it).
+  void check_exclude(std::int64_t exclude, const std::string& who) const {
+    if (exclude != MovingScene::none && !(exclude >= 0 && std::uint64_t(exclude) < store.size()))
+      throw std::out_of_range(who + ": exclude " + std::to_string(exclude) +
+                              " is neither none (-1) nor a particle (" +
+                              std::to_string(store.size()) + " particles)");
+  }
 
   // A trial against the stored particles, at `cutoff`: its reach to the
   // largest of them must fit twice across a periodic box (the minimum image
@@ -353,17 +364,14 @@ struct MovingScene::Impl {
   void check_trial(const Particle& trial, double cutoff, const char* who) const {
     const double reach = cutoff * (trial.bounding_radius() + grid_radius);
     check_reach(reach, who, " for the trial particle", [&] {
-      return "cutoff * (R_trial + R_max) = " + std::to_string(reach) + " (cutoff " +
-             std::to_string(cutoff) + ", bounding radius " +
-             std::to_string(trial.bounding_radius()) + ", the scene's largest " +
-             std::to_string(grid_radius);
+      return "cutoff * (R_trial + R_max) = " + number_text(reach) + " (cutoff " +
+             number_text(cutoff) + ", bounding radius " + number_text(trial.bounding_radius()) +
+             ", the scene's largest " + number_text(grid_radius);
     });
   }
 
   void check_particle(const Particle& p, const char* who) const {
-    if (p.type() != ParticleStore::untyped && p.type() >= store.types())
-      throw std::invalid_argument(std::string(who) + ": type " + std::to_string(p.type()) +
-                                  " does not exist (" + std::to_string(store.types()) + " types)");
+    store.check_type(p, who);
     check_box(p.bounding_radius(), options.max_cutoff, who);
   }
 
@@ -726,13 +734,15 @@ void MovingScene::move(std::size_t i, const Particle& p) {
 bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
   Impl& s = *impl_;
   // Checks first (no exception may leave a parallel region: false instead).
-  if (i >= s.store.size() || !(p.bounding_radius() <= s.grid_radius) ||
-      (p.type() != ParticleStore::untyped && p.type() >= s.store.types()))
+  if (i >= s.store.size() || !(p.bounding_radius() <= s.grid_radius) || !s.store.type_fits(p))
     return false;
   bool inside = true;
   const std::size_t to = s.cell_of(p.centre(), &inside);
   const std::size_t from = s.home[i];
-  if (!inside && !s.outside[i]) return false;  // (open boxes: the count is shared)
+  // (Open boxes: a move into or out of the region the grid covers changes
+  // the count of particles outside it, which the threads share: left to
+  // move(). Moving in without it left the count too high.)
+  if (inside == bool(s.outside[i])) return false;
   if (to != from && s.full(to)) return false;
   s.store.set_particle(i, p);
   if (to == from) {
@@ -741,7 +751,6 @@ bool MovingScene::move_in_own_cells(std::size_t i, const Particle& p) {
     s.vacate(i);
     s.occupy(i, to);
   }
-  s.outside[i] = !inside;
   return true;
 }
 
@@ -750,8 +759,9 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   Impl& s = *impl_;
   const int team = detail::thread_count(threads, "MovingScene::move_many");
   for (std::size_t k = 0; k < count; ++k) {
-    s.check_index(index[k], "MovingScene::move_many");
-    s.check_particle(particles[k], "MovingScene::move_many");
+    const std::string who = "MovingScene::move_many, move " + std::to_string(k);
+    s.check_index(index[k], who.c_str());
+    s.check_particle(particles[k], who.c_str());
   }
   // Parallel only when every move keeps to cells no other move touches,
   // needs no rebuild, and finds room in its new cell.
@@ -858,6 +868,7 @@ std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) 
   const Impl& s = *impl_;
   thread_local Pending pending(64);
   s.check_trial(trial, 1.0, "MovingScene::overlaps");
+  s.check_exclude(exclude, "MovingScene::overlaps");
   const TrialSide t(trial);
   const auto search = s.near_search(trial, 1.0);
   for (Cells part : {Cells::own, Cells::others}) {
@@ -885,11 +896,13 @@ std::vector<Neighbor> MovingScene::neighbors(const Particle& trial, double cutof
                                              std::int64_t exclude) const {
   const Impl& s = *impl_;
   if (!(cutoff > 0) || !std::isfinite(cutoff) ||
-      !(cutoff * cutoff >= std::numeric_limits<double>::min()))
+      !(cutoff * cutoff >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff * cutoff))
     throw std::invalid_argument(
-        "MovingScene::neighbors: the cutoff must be positive and finite, got " +
-        std::to_string(cutoff));
+        "MovingScene::neighbors: the cutoff must be positive and finite, and its square a "
+        "normal number (mu^2 is compared with it), got " +
+        number_text(cutoff));
   s.check_trial(trial, cutoff, "MovingScene::neighbors");
+  s.check_exclude(exclude, "MovingScene::neighbors");
   const TrialSide t(trial);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<Neighbor> out;
@@ -953,7 +966,11 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
                            std::int64_t* first_overlap, int threads) const {
   const Impl& s = *impl_;
   const int team = detail::thread_count(threads, "MovingScene::overlaps");
-  for (std::size_t t = 0; t < count; ++t) s.check_trial(trials[t], 1.0, "MovingScene::overlaps");
+  for (std::size_t t = 0; t < count; ++t) {
+    const std::string who = "MovingScene::overlaps, trial " + std::to_string(t);
+    s.check_trial(trials[t], 1.0, who.c_str());
+    if (exclude) s.check_exclude(exclude[t], who);
+  }
   detail::ParallelErrors errors;
   // Trials in blocks per thread: each block's undecided pairs solved in
   // calls of many pairs, the SIMD lanes across trials.
@@ -997,6 +1014,9 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
 std::array<int, 3> MovingScene::cells() const noexcept { return impl_->grid().cells; }
 
 std::array<int, 3> MovingScene::cell_of(const std::array<double, 3>& centre) const {
+  for (double x : centre)
+    if (!std::isfinite(x))
+      throw std::invalid_argument("MovingScene::cell_of: the centre is not finite");
   const std::size_t cell = impl_->cell_of(centre);
   const auto& n = impl_->grid().cells;
   return {int(cell / (std::size_t(n[1]) * n[2])), int(cell / n[2] % n[1]), int(cell % n[2])};

@@ -10,11 +10,14 @@
 #include <stdexcept>
 #include <string>
 
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 #include "screen/cell_lists.hpp"
 #include "thread_count.hpp"
 
 namespace pwcontact {
+
+using detail::number_text;
 namespace {
 
 double now() {
@@ -56,14 +59,13 @@ bool in_plane(const ParticleStore& particles, std::size_t i) {
 SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(options) {
   if (!(options.cutoff >= 1) || !std::isfinite(options.cutoff))
     throw std::invalid_argument("SkinNeighborList: the cutoff must be >= 1 and finite, got " +
-                                std::to_string(options.cutoff));
+                                number_text(options.cutoff));
   if (!(options.skin > 0) || !std::isfinite(options.skin))
     throw std::invalid_argument("SkinNeighborList: the skin must be positive and finite, got " +
-                                std::to_string(options.skin));
+                                number_text(options.skin));
   if (!std::isfinite(options.cutoff + options.skin))
     throw std::invalid_argument("SkinNeighborList: cutoff + skin must be finite, got " +
-                                std::to_string(options.cutoff) + " + " +
-                                std::to_string(options.skin));
+                                number_text(options.cutoff) + " + " + number_text(options.skin));
 }
 
 SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& box,

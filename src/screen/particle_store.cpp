@@ -11,11 +11,14 @@
 #include <string>
 #include <utility>
 
+#include "number_text.hpp"
 #include "pwcontact/ellipsoid.hpp"
 #include "pwcontact/screen.hpp"
 #include "screen/huge_pages.hpp"
 
 namespace pwcontact {
+
+using detail::number_text;
 
 namespace {
 
@@ -146,13 +149,6 @@ ParticleStore::Particle named_particle(std::size_t i, Make&& make) {
   } catch (const std::invalid_argument&) {
     return make(particle_name(i));
   }
-}
-
-// %g: "0", "1e-300", "inf" (std::to_string writes 0.000000 for 1e-300).
-std::string number_text(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.17g", x);
-  return text;
 }
 
 void check_centre(const std::string& who, const std::array<double, 3>& centre) {
@@ -369,14 +365,33 @@ ParticleStore::Particle ParticleStore::particle_at(std::size_t i) const {
   return p;
 }
 
+bool ParticleStore::type_fits(const Particle& p) const noexcept {
+  if (p.type_ == untyped) return true;
+  if (p.type_ >= type_axes_.size()) return false;
+  // The radii of a typed particle are its type's, copied (particle_typed);
+  // its Q is R diag(a^2) R^T, whose trace is sum a^2 to a few ulps.
+  const Radii& radii = type_radii_[p.type_];
+  const auto& a = type_axes_[p.type_];
+  const double trace = p.q_[0] + p.q_[3] + p.q_[5];
+  const double expected = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+  return p.bounding_ == radii.bounding && p.inscribed_ == radii.inscribed &&
+         p.sphere_ == radii.sphere && std::abs(trace - expected) <= 1e-12 * expected;
+}
+
+void ParticleStore::check_type(const Particle& p, const std::string& who) const {
+  if (type_fits(p)) return;
+  if (p.type_ >= type_axes_.size())
+    throw std::invalid_argument(who + ": type " + std::to_string(p.type_) + " does not exist (" +
+                                std::to_string(type_axes_.size()) + " types)");
+  throw std::invalid_argument(who + ": a particle of type " + std::to_string(p.type_) +
+                              " whose shape is not that type's here (made by another store?)");
+}
+
 void ParticleStore::set_particle(std::size_t i, const Particle& p) {
   if (i >= size())
     throw std::out_of_range("ParticleStore: " + particle_name(i) + " does not exist (" +
                             std::to_string(size()) + " particles)");
-  if (p.type_ != untyped && p.type_ >= type_axes_.size())
-    throw std::invalid_argument(particle_name(i) + ": type " + std::to_string(p.type_) +
-                                " does not exist (" + std::to_string(type_axes_.size()) +
-                                " types)");
+  check_type(p, particle_name(i));
   for (int k = 0; k < 3; ++k) centre_[k][i] = p.centre_[k];
   for (int k = 0; k < 6; ++k) q_[k][i] = p.q_[k];
   bounding_[i] = p.bounding_;
@@ -426,7 +441,7 @@ ParticleStore::Radii ParticleStore::radii_of(const std::string& who, const std::
   const double slack = eigenvalue_slack(largest);
   if (!(smallest > slack))
     throw std::invalid_argument(who + ": Q is not positive definite (smallest eigenvalue " +
-                                std::to_string(smallest) + ")");
+                                number_text(smallest) + ")");
   const auto [bounding, inscribed] = radii_of_extremes(smallest, largest, slack);
   return {bounding, inscribed, sphere_radius_of(q)};
 }

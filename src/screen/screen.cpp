@@ -14,6 +14,7 @@
 #include <string>
 #include <utility>
 
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/reference.hpp"
 #include "pwcontact/screen.hpp"
@@ -184,7 +185,7 @@ inline void classify_near_pair(ThreadPairs& mine, const ScreenOptions& options, 
 ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOptions options) {
   if (!(options.cutoff > 0) || !std::isfinite(options.cutoff))
     throw std::invalid_argument("screen_pairs: the cutoff must be positive and finite, got " +
-                                std::to_string(options.cutoff));
+                                detail::number_text(options.cutoff));
   // mu^2 is compared with cutoff^2: it must be a normal number.
   const double cutoff2 = options.cutoff * options.cutoff;
   if (!(cutoff2 >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff2)) {
