@@ -177,7 +177,7 @@ class ParticleStore {
   // untyped or of a type of this store with that type's shape (its radii,
   // and the trace of Q within 1e-12: a particle another store made with
   // another shape under the same type id was taken as this store's type).
-  void check_type(const Particle& p, const std::string& who) const;
+  void check_type(const Particle& p, const char* who) const;
   bool type_fits(const Particle& p) const noexcept;  // (check_type without the exception)
   void add_particle(const Particle& p);
   // Removes particle i by moving the last particle into its place

@@ -45,6 +45,26 @@ constexpr std::size_t batch_solve_pairs = 1024;
 
 std::string particle_name(std::size_t i) { return "particle " + std::to_string(i); }
 
+// The checks of entry k of a batched call, `check(who)`, with the entry
+// named in the message on failure ("<who>, move 4: ..."). No string is made
+// unless a check fails (one per entry cost a heap allocation per move).
+template <class Check>
+void check_entry(const char* who, const char* entry, std::size_t k, Check&& check) {
+  auto named = [&](const char* what) {
+    const std::string text = what, prefix = who;
+    const std::string name = prefix + ", " + entry + " " + std::to_string(k);
+    return text.compare(0, prefix.size(), prefix) == 0 ? name + text.substr(prefix.size())
+                                                       : name + ": " + text;
+  };
+  try {
+    check(who);
+  } catch (const std::out_of_range& e) {
+    throw std::out_of_range(named(e.what()));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(named(e.what()));
+  }
+}
+
 // Open axes: beyond this many particles outside the region the grid covers
 // (in its outer cells), the grid is rebuilt over the particles' new extent.
 std::size_t outside_limit(std::size_t n) { return n / 4 + 64; }
@@ -351,9 +371,9 @@ struct MovingScene::Impl {
   }
   // A query's `exclude`: none or a particle (an index out of range was taken
   // as none, silently, where Python refused it).
-  void check_exclude(std::int64_t exclude, const std::string& who) const {
+  void check_exclude(std::int64_t exclude, const char* who) const {
     if (exclude != MovingScene::none && !(exclude >= 0 && std::uint64_t(exclude) < store.size()))
-      throw std::out_of_range(who + ": exclude " + std::to_string(exclude) +
+      throw std::out_of_range(std::string(who) + ": exclude " + std::to_string(exclude) +
                               " is neither none (-1) nor a particle (" +
                               std::to_string(store.size()) + " particles)");
   }
@@ -758,11 +778,11 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
                             std::size_t count, int threads) {
   Impl& s = *impl_;
   const int team = detail::thread_count(threads, "MovingScene::move_many");
-  for (std::size_t k = 0; k < count; ++k) {
-    const std::string who = "MovingScene::move_many, move " + std::to_string(k);
-    s.check_index(index[k], who.c_str());
-    s.check_particle(particles[k], who.c_str());
-  }
+  for (std::size_t k = 0; k < count; ++k)
+    check_entry("MovingScene::move_many", "move", k, [&](const char* who) {
+      s.check_index(index[k], who);
+      s.check_particle(particles[k], who);
+    });
   // Parallel only when every move keeps to cells no other move touches,
   // needs no rebuild, and finds room in its new cell.
   if (++s.generation == 0) {
@@ -966,11 +986,11 @@ void MovingScene::overlaps(const Particle* trials, const std::int64_t* exclude, 
                            std::int64_t* first_overlap, int threads) const {
   const Impl& s = *impl_;
   const int team = detail::thread_count(threads, "MovingScene::overlaps");
-  for (std::size_t t = 0; t < count; ++t) {
-    const std::string who = "MovingScene::overlaps, trial " + std::to_string(t);
-    s.check_trial(trials[t], 1.0, who.c_str());
-    if (exclude) s.check_exclude(exclude[t], who);
-  }
+  for (std::size_t t = 0; t < count; ++t)
+    check_entry("MovingScene::overlaps", "trial", t, [&](const char* who) {
+      s.check_trial(trials[t], 1.0, who);
+      if (exclude) s.check_exclude(exclude[t], who);
+    });
   detail::ParallelErrors errors;
   // Trials in blocks per thread: each block's undecided pairs solved in
   // calls of many pairs, the SIMD lanes across trials.

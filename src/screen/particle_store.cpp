@@ -378,12 +378,15 @@ bool ParticleStore::type_fits(const Particle& p) const noexcept {
          p.sphere_ == radii.sphere && std::abs(trace - expected) <= 1e-12 * expected;
 }
 
-void ParticleStore::check_type(const Particle& p, const std::string& who) const {
+// (`who` as a C string: a std::string made for it on every move cost a heap
+// allocation per move.)
+void ParticleStore::check_type(const Particle& p, const char* who) const {
   if (type_fits(p)) return;
   if (p.type_ >= type_axes_.size())
-    throw std::invalid_argument(who + ": type " + std::to_string(p.type_) + " does not exist (" +
-                                std::to_string(type_axes_.size()) + " types)");
-  throw std::invalid_argument(who + ": a particle of type " + std::to_string(p.type_) +
+    throw std::invalid_argument(std::string(who) + ": type " + std::to_string(p.type_) +
+                                " does not exist (" + std::to_string(type_axes_.size()) +
+                                " types)");
+  throw std::invalid_argument(std::string(who) + ": a particle of type " + std::to_string(p.type_) +
                               " whose shape is not that type's here (made by another store?)");
 }
 
@@ -391,7 +394,7 @@ void ParticleStore::set_particle(std::size_t i, const Particle& p) {
   if (i >= size())
     throw std::out_of_range("ParticleStore: " + particle_name(i) + " does not exist (" +
                             std::to_string(size()) + " particles)");
-  check_type(p, particle_name(i));
+  if (!type_fits(p)) check_type(p, particle_name(i).c_str());
   for (int k = 0; k < 3; ++k) centre_[k][i] = p.centre_[k];
   for (int k = 0; k < 6; ++k) q_[k][i] = p.q_[k];
   bounding_[i] = p.bounding_;
