@@ -10,7 +10,6 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -20,6 +19,7 @@
 #include <vector>
 
 #include "kernels/kernel_api.hpp"
+#include "number_text.hpp"
 #include "pair_overlap_solver.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/batch.hpp"
@@ -527,16 +527,12 @@ kernels::ChunkSettings overlap_settings(const BatchReport& report, const BatchOp
                                         double cutoff) {
   if (!(cutoff > 0) || !std::isfinite(cutoff))
     throw std::invalid_argument("overlap_batch: cutoff must be positive and finite, got " +
-                                std::to_string(cutoff));
+                                detail::number_text(cutoff));
   // mu^2 is compared with cutoff^2: it must be a normal number.
-  if (!(cutoff * cutoff >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff * cutoff)) {
-    char text[32];  // the shortest form that reads back as the value
-    *std::to_chars(text, text + sizeof text - 1, cutoff).ptr = '\0';
+  if (!(cutoff * cutoff >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff * cutoff))
     throw std::invalid_argument(
-        std::string("overlap_batch: the cutoff's square is outside the range of normal doubles, "
-                    "cutoff ") +
-        text);
-  }
+        "overlap_batch: the cutoff's square is outside the range of normal doubles, cutoff " +
+        detail::number_text(cutoff));
   if (options.accuracy == Accuracy::high)
     throw std::invalid_argument(
         "overlap_batch: Accuracy::high applies to mu^2, not to overlap answers");

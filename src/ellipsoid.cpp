@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "number_text.hpp"
+
 namespace pwcontact {
 namespace {
 
@@ -43,7 +45,7 @@ QuadraticForm quadratic_form(const std::array<double, 3>& semi_axes,
   if (!r.allFinite() || !(defect <= 1e-9))
     throw std::invalid_argument(
         "quadratic_form: rotation matrix is not orthogonal (|R^T R - I| = " +
-        std::to_string(defect) + ")");
+        detail::number_text(defect) + ")");
   return from_rotation(semi_axes, r);
 }
 

@@ -353,6 +353,7 @@ ellipse = [{'type': 'Ellipsoid', 'a': 1, 'b': 0.5}]
 write('tilted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0)),
       orientation=((1, 0, 0, 0), (0.8, 0.6, 0, 0)))
 write('lifted_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 0.5)))
+write('nudged_2d.gsd', ellipse, dimensions=2, position=((0, 0, 0), (1, 1, 2.0**-20)))
 write('ellipse_2d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}], dimensions=2, position=((0, 0, 0), (1, 1, 0)))
 write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
 )";
@@ -377,6 +378,10 @@ write('ellipse_3d.gsd', [{'type': 'Ellipse', 'a': 1, 'b': 0.5}])
   EXPECT_NE(message("lifted_2d.gsd").find("particle 1: a two-dimensional scene, but its z is 0.5"),
             std::string::npos)
       << message("lifted_2d.gsd");
+  // A z off the plane by a float32 rounding is shown as it is (it read
+  // "0.000001", which looked like a rounding of 0).
+  EXPECT_NE(message("nudged_2d.gsd").find("its z is 9.5367431640625e-07, not 0"), std::string::npos)
+      << message("nudged_2d.gsd");
   // An Ellipse shape: an ellipse in 2D, refused in 3D.
   const Scene ellipses = pwcontact::read_gsd((directory_ / "ellipse_2d.gsd").string());
   for (std::size_t i = 0; i < 2; ++i) expect_radii(ellipses, i, 1, 0.5, "Ellipse a 1 b 0.5");

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "number_text.hpp"
+
 namespace pwcontact::cli {
 namespace {
 
@@ -83,7 +85,8 @@ Float32Scene round_to_float32(const Box& box, const std::vector<std::array<doubl
   throw std::runtime_error(
       "round_to_float32: no scale up to 1 + 1e-3 keeps the rounded scene's pairs "
       "at mu >= 1 + " +
-      std::to_string(margin) + " (closest " + std::to_string(out.mu_min) + ")");
+      pwcontact::detail::number_text(margin) + " (closest " +
+      pwcontact::detail::number_text(out.mu_min) + ")");
 }
 
 }  // namespace pwcontact::cli

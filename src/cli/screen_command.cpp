@@ -1,12 +1,10 @@
 // `pwcontact screen`: every pair of a scene of ellipsoids with mu < cutoff,
 // from a file of particles.
 #include <omp.h>
-#include <sys/stat.h>
 
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -89,24 +87,6 @@ std::vector<double> parse_box_numbers(std::string_view text) {
 }
 
 // "--columns x=xu,shapex=c_s[1],...": the dump's column of each quantity.
-// Whether two output paths ("-": standard output) name one file: one
-// existing file (through a link, /dev/stdout beside -), or the same path
-// once made absolute and normal (./name beside name, before either exists).
-bool same_destination(const std::string& a, const std::string& b) {
-  if (a == b) return true;
-  auto identity = [](const std::string& path, struct stat& out) {
-    return path == "-" ? fstat(fileno(stdout), &out) == 0 : stat(path.c_str(), &out) == 0;
-  };
-  struct stat sa {
-  }, sb{};
-  if (identity(a, sa) && identity(b, sb)) return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
-  if (a == "-" || b == "-") return false;
-  std::error_code ignored;
-  const auto normal_a = std::filesystem::weakly_canonical(std::filesystem::absolute(a), ignored);
-  const auto normal_b = std::filesystem::weakly_canonical(std::filesystem::absolute(b), ignored);
-  return !normal_a.empty() && normal_a == normal_b;
-}
-
 LammpsColumns parse_columns(std::string_view text) {
   static const char* const names[10] = {"x",      "y",     "z",     "shapex", "shapey",
                                         "shapez", "quatw", "quati", "quatj",  "quatk"};

@@ -18,6 +18,11 @@
 namespace pwcontact::cli {
 namespace {
 
+// Whether two stat results are one file (its device and inode).
+bool same_file(const struct stat& a, const struct stat& b) {
+  return a.st_dev == b.st_dev && a.st_ino == b.st_ino;
+}
+
 [[noreturn]] void fail_to_write(const std::string& name, int error) {
   throw CommandError(ExitStatus::io_error, "cannot write " + name + ": " + std::strerror(error));
 }
@@ -97,6 +102,21 @@ void ensure_standard_descriptors() {
   }
 }
 
+bool same_destination(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  auto identity = [](const std::string& path, struct stat& out) {
+    return path == "-" ? fstat(fileno(stdout), &out) == 0 : stat(path.c_str(), &out) == 0;
+  };
+  struct stat sa {
+  }, sb{};
+  if (identity(a, sa) && identity(b, sb)) return same_file(sa, sb);
+  if (a == "-" || b == "-") return false;
+  std::error_code ignored;
+  const auto normal_a = std::filesystem::weakly_canonical(std::filesystem::absolute(a), ignored);
+  const auto normal_b = std::filesystem::weakly_canonical(std::filesystem::absolute(b), ignored);
+  return !normal_a.empty() && normal_a == normal_b;
+}
+
 OutputFile::OutputFile(const std::string& path) {
   if (path == "-") {
     name_ = "<stdout>";
@@ -111,8 +131,7 @@ OutputFile::OutputFile(const std::string& path) {
   // open, not replaced by a new file (which lost what the log held).
   for (FILE* standard : {stdout, stderr}) {
     struct stat open_file {};
-    if (exists && fstat(fileno(standard), &open_file) == 0 && open_file.st_dev == existing.st_dev &&
-        open_file.st_ino == existing.st_ino) {
+    if (exists && fstat(fileno(standard), &open_file) == 0 && same_file(open_file, existing)) {
       file_ = standard;
       return;
     }

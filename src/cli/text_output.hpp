@@ -40,6 +40,11 @@ char* write_number(char* out, T value) {
 // file opened later takes its number; called first thing in main().
 void ensure_standard_descriptors();
 
+// Whether two output paths ("-": standard output) name one file: one
+// existing file (through a link, /dev/stdout beside -), or the same path
+// once made absolute and normal (./name beside name, before either exists).
+bool same_destination(const std::string& a, const std::string& b);
+
 // Where the results go: standard output ("-"), or a file that is written
 // under a temporary name in the same directory and renamed into place by
 // commit(), so that a failed run never leaves a partial file behind (devices

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "fixtures/families.hpp"
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/pwcontact.hpp"
 #include "thread_count.hpp"
@@ -393,7 +394,8 @@ py::dict overlap(const py::object& r12, const py::object& q1, const py::object& 
                  const std::string& precision, const py::object& iterations, int threads,
                  const std::string& isa) {
   if (!(cutoff > 0) || !std::isfinite(cutoff))
-    throw py::value_error("cutoff must be positive and finite, got " + std::to_string(cutoff));
+    throw py::value_error("cutoff must be positive and finite, got " +
+                          pwcontact::detail::number_text(cutoff));
   const pwcontact::BatchOptions options = batch_options(precision, iterations, "standard", isa);
   const bool single = is_float32(r12) && is_float32(q1) && is_float32(q2) &&
                       (options.precision == pwcontact::Precision::automatic ||
@@ -420,7 +422,8 @@ py::array_t<double> quadratic_form(const py::object& semi_axes_in,
       const std::array<double, 3> a = {axes.at(i, 0), axes.at(i, 1), axes.at(i, 2)};
       for (int k = 0; k < 3 && bad == n; ++k)
         if (!(a[k] > 0) || !std::isfinite(a[k]))
-          bad = i, why = "semi_axes must be positive and finite, got " + std::to_string(a[k]);
+          bad = i, why = "semi_axes must be positive and finite, got " +
+                         pwcontact::detail::number_text(a[k]);
       if (bad != n) break;
       try {
         const pwcontact::QuadraticForm f = pwcontact::quadratic_form_from_quaternion(

@@ -16,6 +16,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/scene_files.hpp"
 #include "scene/gsd_format.hpp"
@@ -357,12 +358,12 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
             throw std::invalid_argument("its orientation is zero or not finite");
           if (x * x + y * y > 1e-12 * norm)
             throw std::invalid_argument("a two-dimensional scene, but its orientation (" +
-                                        std::to_string(w) + ", " + std::to_string(x) + ", " +
-                                        std::to_string(y) + ", " + std::to_string(z) +
-                                        ") is not a rotation about z");
+                                        detail::number_text(w) + ", " + detail::number_text(x) +
+                                        ", " + detail::number_text(y) + ", " +
+                                        detail::number_text(z) + ") is not a rotation about z");
           if (position[3 * i + 2] != 0)
             throw std::invalid_argument("a two-dimensional scene, but its z is " +
-                                        std::to_string(position[3 * i + 2]) + ", not 0");
+                                        detail::number_text(position[3 * i + 2]) + ", not 0");
           const double theta = std::atan2(2 * (x * y + w * z), w * w + x * x - y * y - z * z);
           scene.particles.set_ellipse(i, position[3 * i], position[3 * i + 1], shape.a[0],
                                       shape.a[1], theta);

@@ -5,6 +5,8 @@
 #include <map>
 #include <stdexcept>
 
+#include "number_text.hpp"
+
 namespace pwcontact::detail {
 namespace {
 
@@ -116,7 +118,7 @@ double positive(const std::map<std::string, double>& numbers, const std::string&
     throw std::invalid_argument("its " + shape + " shape has no number '" + key + "'");
   if (!(found->second > 0) || !std::isfinite(found->second))
     throw std::invalid_argument("its " + shape + " shape has " + key + " = " +
-                                std::to_string(found->second) + ", not positive and finite");
+                                detail::number_text(found->second) + ", not positive and finite");
   return found->second;
 }
 

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 #include "pwcontact/ellipsoid.hpp"
 #include "thread_count.hpp"
@@ -115,7 +116,7 @@ HardParticleMC::HardParticleMC(const Box& box, std::vector<std::array<double, 3>
                                 std::to_string(orientation.size()) + " orientations");
   if (!(options.packing > 0 && options.packing < 1))
     throw std::invalid_argument("HardParticleMC: the packing fraction must be in (0, 1), got " +
-                                std::to_string(options.packing));
+                                detail::number_text(options.packing));
   if (!(options.translation > 0) || !std::isfinite(options.translation) ||
       !(options.rotation >= 0) || !std::isfinite(options.rotation))
     throw std::invalid_argument(
@@ -362,7 +363,7 @@ double HardParticleMC::compress() {
   for (double m : s.near.mu2) mu2_min = std::min(mu2_min, m);
   if (!(mu2_min >= 1))
     throw std::logic_error("HardParticleMC::compress: the state overlaps (mu^2 " +
-                           std::to_string(mu2_min) + ")");
+                           detail::number_text(mu2_min) + ")");
   // Closer than 1e-6 to contact: no room (nor trust in the last digits).
   const double mu_min = std::sqrt(mu2_min);
   if (now_packing >= target || mu_min < 1 + 1e-6) return now_packing;
@@ -396,18 +397,19 @@ void HardParticleMC::compress_to_packing(
       if (!(widths[k] * scale >= needed))
         throw std::invalid_argument(
             "HardParticleMC: " + std::to_string(s.semi_axes.size()) +
-            " particles are too few for the packing fraction " + std::to_string(s.options.packing) +
-            ": its box would be " + std::to_string(widths[k] * scale) + " wide across axis " +
-            std::to_string(k) + ", less than the " + std::to_string(needed) +
+            " particles are too few for the packing fraction " +
+            detail::number_text(s.options.packing) + ": its box would be " +
+            detail::number_text(widths[k] * scale) + " wide across axis " + std::to_string(k) +
+            ", less than the " + std::to_string(needed) +
             " that the screens of the compression need (twice 1.1 times the largest "
             "diameter); take more particles or a lower packing fraction");
   }
   std::size_t done = 0;
   while (packing() < target) {
     if (done >= max_sweeps)
-      throw std::runtime_error("HardParticleMC: the packing fraction " + std::to_string(packing()) +
-                               " after " + std::to_string(done) + " sweeps, short of " +
-                               std::to_string(s.options.packing));
+      throw std::runtime_error("HardParticleMC: the packing fraction " +
+                               detail::number_text(packing()) + " after " + std::to_string(done) +
+                               " sweeps, short of " + detail::number_text(s.options.packing));
     const SweepReport r = sweep();
     ++done;
     compress();  // (a full screen_pairs, which finds any overlap: std::logic_error)

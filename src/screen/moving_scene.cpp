@@ -162,8 +162,9 @@ struct MovingScene::Impl {
     for (int k = 0; k < 3; ++k)
       if (box.periodic_along(k) && !(2 * reach <= widths[k]))
         throw std::invalid_argument(std::string(who) + ": the periodic box is too small" + subject +
-                                    ": its width " + std::to_string(widths[k]) + " across axis " +
-                                    std::to_string(k) + " is less than twice the reach " + terms() +
+                                    ": its width " + detail::number_text(widths[k]) +
+                                    " across axis " + std::to_string(k) +
+                                    " is less than twice the reach " + terms() +
                                     "; the minimum image convention would miss pairs)");
   }
 
@@ -651,7 +652,7 @@ MovingScene::MovingScene(ParticleStore particles, const Box& box, const MovingSc
     : impl_(new Impl) {
   if (!(options.max_cutoff >= 1) || !std::isfinite(options.max_cutoff))
     throw std::invalid_argument("MovingScene: max_cutoff must be at least 1 and finite, got " +
-                                std::to_string(options.max_cutoff));
+                                detail::number_text(options.max_cutoff));
   if (particles.size() >= (std::size_t(1) << 31))
     throw std::invalid_argument("MovingScene: at most 2^31 - 1 particles");
   particles.require_set("MovingScene");

@@ -26,7 +26,7 @@ void check_lengths(std::initializer_list<double> lengths) {
   for (double l : lengths)
     if (!(l > 0) || !std::isfinite(l))
       throw std::invalid_argument("Box: a periodic box needs positive, finite lengths, got " +
-                                  std::to_string(l));
+                                  detail::number_text(l));
 }
 
 void check_tilts(std::initializer_list<double> tilts) {

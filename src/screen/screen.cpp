@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -188,13 +187,10 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
                                 detail::number_text(options.cutoff));
   // mu^2 is compared with cutoff^2: it must be a normal number.
   const double cutoff2 = options.cutoff * options.cutoff;
-  if (!(cutoff2 >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff2)) {
-    char text[32];  // the shortest form that reads back as the value
-    *std::to_chars(text, text + sizeof text - 1, options.cutoff).ptr = '\0';
-    throw std::invalid_argument(std::string("screen_pairs: the cutoff's square is outside the "
-                                            "range of normal doubles, cutoff ") +
-                                text);
-  }
+  if (!(cutoff2 >= std::numeric_limits<double>::min()) || !std::isfinite(cutoff2))
+    throw std::invalid_argument(
+        "screen_pairs: the cutoff's square is outside the range of normal doubles, cutoff " +
+        detail::number_text(options.cutoff));
   // PWCONTACT_ISA and the CPU are read once, here.
   options.batch.isa = resolve_isa(options.batch.isa);
   detail::thread_count(options.threads, "screen_pairs");
@@ -213,10 +209,10 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
     if (box.periodic_along(k) && !(2 * reach <= widths[k]))
       throw std::invalid_argument(
           "screen_pairs: the periodic box is too small for the cutoff: its width " +
-          std::to_string(widths[k]) + " across axis " + std::to_string(k) +
+          detail::number_text(widths[k]) + " across axis " + std::to_string(k) +
           (box.orthorhombic() ? std::string() : " (between the faces of the tilted box)") +
           " is less than twice the largest reach (the reach cutoff * 2 R_max is " +
-          std::to_string(reach) + "; the minimum image convention would miss pairs)");
+          detail::number_text(reach) + "; the minimum image convention would miss pairs)");
   return options;
 }
 
