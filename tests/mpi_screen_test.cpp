@@ -444,9 +444,11 @@ int main(int argc, char** argv) {
                                          options, out);
           },
           "different batch precisions");
-    // So does the instruction set each rank resolves (FMA or not): one rank
-    // on the portable path beside the others' automatic choice (where that
-    // is not the portable path itself).
+    // So does the instruction set each rank runs (FMA or not): one rank
+    // naming the portable path beside the others' automatic choice (where
+    // that is not the portable path itself) is refused. (Left automatic on
+    // every rank, the ranks take the one all run: ctest's
+    // mpi.screen_mixed_instruction_sets runs this program so.)
     if (ranks > 1 && pwcontact::resolve_isa(pwcontact::Isa::automatic) != pwcontact::Isa::fallback)
       expect_error(
           "an instruction set that differs between ranks",

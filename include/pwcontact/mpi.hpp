@@ -87,8 +87,11 @@ struct DistributedReport {
 // wrapped centres plus the same lattice vector in both), and so is mu^2 when
 // every rank passes the same options. The box, the cutoff, with_mu2, the
 // solve's options (iterations, precision, accuracy, formulation) and the
-// instruction set each rank resolves (FMA or not changes the last bits) are
+// instruction set each rank runs (FMA or not changes the last bits) are
 // compared across the ranks: ranks that differ are refused on every rank.
+// An instruction set left automatic on every rank is the most capable one
+// every rank runs (fallback < sse2 < avx2 < avx512): ranks on different
+// CPUs agree on it.
 DistributedReport screen_pairs(MPI_Comm comm, const ParticleStore& particles,
                                const std::vector<std::uint64_t>& tags, const Box& box,
                                const ScreenOptions& options, TaggedPairs& out);

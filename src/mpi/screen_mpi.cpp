@@ -37,6 +37,7 @@
 #include <utility>
 
 #include "mpi/agree.hpp"
+#include "number_text.hpp"
 #include "pwcontact/mpi.hpp"
 #include "screen/cell_lists.hpp"
 #include "thread_count.hpp"
@@ -121,6 +122,16 @@ bool box_is_valid(const Box& box) {
   }
   return true;
 }
+
+// The instruction sets by what they run: a CPU that runs one runs every
+// one below it (the portable path runs everywhere).
+constexpr Isa by_capability[4] = {Isa::fallback, Isa::sse2, Isa::avx2, Isa::avx512};
+int isa_capability(Isa isa) {
+  for (int k = 0; k < 4; ++k)
+    if (by_capability[k] == isa) return k;
+  return 0;  // (automatic is resolved before this is asked)
+}
+Isa isa_of_capability(int k) { return by_capability[k < 0 ? 0 : (k > 3 ? 3 : k)]; }
 
 // Frees the communicators and the datatype made here, however we leave.
 struct Handles {
@@ -272,13 +283,32 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
       error = e.what();
     }
   throw_if_any(comm, error);
+  // Left automatic on every rank, the instruction set is the most capable
+  // one every rank runs: ranks on CPUs of different generations (or with
+  // PWCONTACT_ISA on some) then agree instead of being refused. Each CPU
+  // that runs one of fallback < sse2 < avx2 < avx512 runs those below it.
+  ScreenOptions agreed = options;
+  {
+    const int asked_automatic = options.batch.isa == Isa::automatic ? 1 : 0;
+    const int mine[2] = {asked_automatic, isa_capability(isa)};
+    int least[2] = {0, 0};
+    MPI_Allreduce(mine, least, 2, MPI_INT, MPI_MIN, comm);
+    if (least[0] == 1) {
+      isa = isa_of_capability(least[1]);
+      try {
+        agreed.batch.isa = resolve_isa(isa);  // (runs here: a lower one of this CPU's)
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+      throw_if_any(comm, error);
+    }
+  }
   // The box and the options that decide the pairs, the same on every rank:
   // ranks that differ would pair particles by different rules, or wait for
   // each other in calls the others do not make.
-  // (The solve's options too, and the instruction set each rank resolves:
-  // they decide mu^2's last bits, and so the pairs within rounding of the
-  // cutoff. Ranks on CPUs of different instruction sets are refused unless
-  // the same one is asked of all, e.g. PWCONTACT_ISA=sse2.)
+  // (The solve's options too, and the instruction set each rank runs: they
+  // decide mu^2's last bits, and so the pairs within rounding of the
+  // cutoff. One named on some ranks must be the one the others run.)
   {
     constexpr int count = 15;
     const double mine[count] = {box.length[0],
@@ -309,13 +339,14 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
         // (Thrown on every rank alike: every rank has the same low and high.)
         auto value = [k](double v) {
           return k == count - 1 ? std::string(isa_name(static_cast<Isa>(int(v))))
-                                : std::to_string(v);
+                                : pwcontact::detail::number_text(v);
         };
         throw std::invalid_argument(std::string("screen_pairs (MPI): the ranks give different ") +
                                     names[k] + " (from " + value(low[k]) + " to " + value(high[k]) +
                                     "); every rank must pass the same box and options" +
                                     (k == count - 1 ? " and run the same instruction set "
-                                                      "(PWCONTACT_ISA names one for all)"
+                                                      "(left automatic on every rank, the ranks "
+                                                      "take the one all of them run)"
                                                     : ""));
       }
   }
@@ -608,8 +639,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   try {
     store.reserve(entries.size());
     for (const Entry& e : entries) store.add_particle(ParticleRecord::read(e.record));
-    report.screen = workspace ? pwcontact::screen_pairs(store, box, options, pairs, *workspace)
-                              : pwcontact::screen_pairs(store, box, options, pairs);
+    report.screen = workspace ? pwcontact::screen_pairs(store, box, agreed, pairs, *workspace)
+                              : pwcontact::screen_pairs(store, box, agreed, pairs);
   } catch (const std::exception& e) {
     error = e.what();
   }
