@@ -757,6 +757,69 @@ TEST(HardParticleMC, EveryFaceBetweenCellsIsCrossedWithAnOddNumberOfCells) {
   EXPECT_EQ(mc.overlapping_pairs(), 0u);
 }
 
+TEST(HardParticleMC, MovesIntoFullCellsAreDeferredAndGiveTheSameStateForEveryThreadCount) {
+  // 1728 small spheres (radius 0.2) packed in a cube of about one cell of a
+  // grid sized for one large sphere (radius 2): the cluster spreads into
+  // cells of few slots, which fill up, so that accepted moves into a full
+  // cell are deferred past their colour of the checkerboard (and the cells
+  // rebuilt), again and again. Spheres are decided in closed form, in the
+  // baseline arithmetic: the trajectory is the same on every instruction
+  // set (11 deferred moves in 30 sweeps).
+  const double length = 36;
+  std::vector<std::array<double, 3>> centre = {{27, 27, 27}}, axes = {{2, 2, 2}};
+  for (int x = 0; x < 12; ++x)
+    for (int y = 0; y < 12; ++y)
+      for (int z = 0; z < 12; ++z) {
+        centre.push_back({4.3 + 0.41 * x, 4.3 + 0.41 * y, 4.3 + 0.41 * z});
+        axes.push_back({0.2, 0.2, 0.2});
+      }
+  const std::size_t n = centre.size();
+  const Box box = Box::periodic_box(length, length, length);
+  std::vector<std::vector<double>> states;
+  for (int threads : {1, 2, 3}) {
+    pwcontact::HardParticleMCOptions options;
+    options.translation = 1.5;
+    options.rotation = 0;
+    options.adapt_steps = false;
+    options.seed = 5;
+    options.threads = threads;
+    pwcontact::HardParticleMC mc(box, centre, axes,
+                                 std::vector<std::array<double, 4>>(n, {1, 0, 0, 0}), options);
+    std::size_t deferred = 0, accepted = 0, left_domain = 0;
+    for (int sweep = 0; sweep < 30; ++sweep) {
+      const pwcontact::SweepReport r = mc.sweep();
+      EXPECT_LE(r.deferred, r.accepted);
+      deferred += r.deferred;
+      accepted += r.accepted;
+      left_domain += r.left_domain;
+      ASSERT_EQ(mc.overlapping_pairs(), 0u) << "sweep " << sweep << ", " << threads << " threads";
+    }
+    EXPECT_GT(left_domain, 0u) << "the checkerboard path (the one-at-a-time path has no domains)";
+    EXPECT_GE(deferred, 8u) << "moves into full cells, of " << accepted << " accepted";
+    // Spheres overlap when their centres, by the nearest image, are closer
+    // than the sum of their radii: every pair, once at the end.
+    const ParticleStore& s = mc.particles();
+    std::size_t overlapping = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = i + 1; j < n; ++j) {
+        double rr = 0;
+        for (int k = 0; k < 3; ++k) {
+          double d = s.centre(k)[j] - s.centre(k)[i];
+          d -= length * std::nearbyint(d / length);
+          rr += d * d;
+        }
+        const double sum = axes[i][0] + axes[j][0];
+        overlapping += rr < sum * sum;
+      }
+    EXPECT_EQ(overlapping, 0u);
+    std::vector<double> all;
+    for (int k = 0; k < 3; ++k) all.insert(all.end(), s.centre(k).begin(), s.centre(k).end());
+    states.push_back(all);
+  }
+  EXPECT_EQ(states[0], states[1]);
+  EXPECT_EQ(states[0], states[2]);
+}
+
 TEST(HardParticleMC, OrientationsAreUnitQuaternions) {
   // (A quaternion of norm 2 was kept as given, and written so to GSD.)
   const pwcontact::HardParticleMC mc(

@@ -51,6 +51,9 @@ struct SweepReport {
   std::size_t proposed = 0;
   std::size_t accepted = 0;
   std::size_t left_domain = 0;  // rejected for leaving their domain
+  // Accepted moves into a full cell (its slots rebuilt): applied after their
+  // colour of the checkerboard, each ending its domain's trials for it.
+  std::size_t deferred = 0;
   double seconds = 0;
 };
 

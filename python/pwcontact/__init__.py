@@ -770,7 +770,8 @@ class HardParticleMC:
 
     def sweep(self) -> dict:
         """One move proposed per particle: {proposed, accepted, left_domain
-        (rejected for leaving their domain), seconds}."""
+        (rejected for leaving their domain), deferred (accepted moves into a
+        full cell, applied after their colour of the checkerboard), seconds}."""
         return self._mc.sweep()
 
     def compress(self) -> float:

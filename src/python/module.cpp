@@ -1004,6 +1004,7 @@ class PyHardParticleMC {
     d["proposed"] = r.proposed;
     d["accepted"] = r.accepted;
     d["left_domain"] = r.left_domain;
+    d["deferred"] = r.deferred;
     d["seconds"] = r.seconds;
     return d;
   }

@@ -315,6 +315,7 @@ SweepReport HardParticleMC::sweep() {
       if (move.trial) {
         scene.move(move.particle, *move.trial);
         s.orientation[move.particle] = move.orientation;
+        ++report.deferred;
       }
     report.proposed += proposed;
     report.accepted += accepted;
