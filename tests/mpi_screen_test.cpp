@@ -88,8 +88,16 @@ pwcontact::ScreenWorkspace* workspace = nullptr;
 int checks = 0;
 
 // Screens the scene on all ranks and compares on rank 0.
+// With wide_tags, particle k is tagged k 2^32 plus a scramble of k below
+// 2^32, instead of k: tags in the same order, whose lower half is in
+// another (the ranks order their particles by the tags' digits, all 64
+// bits of them).
 pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool with_mu2,
-                                        Start start = Start::round_robin, bool tags32 = false) {
+                                        Start start = Start::round_robin, bool tags32 = false,
+                                        bool wide_tags = false) {
+  auto tag_of = [wide_tags](std::size_t k) -> std::uint64_t {
+    return wide_tags ? (std::uint64_t(k) << 32 | std::uint32_t(k * 2654435761u)) : std::uint64_t(k);
+  };
   ScreenOptions options;
   options.cutoff = cutoff;
   options.with_mu2 = with_mu2;
@@ -108,7 +116,7 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
     }
     if (at != rank) continue;
     scene.add(mine, k);
-    tags.push_back(k);
+    tags.push_back(tag_of(k));
     tags_32.push_back(std::uint32_t(k));
   }
   pwcontact::mpi::TaggedPairs local;
@@ -149,10 +157,10 @@ pwcontact::mpi::DistributedReport check(const Scene& scene, double cutoff, bool 
     why = std::to_string(all.size()) + " pairs, expected " + std::to_string(expected.size());
   if (with_mu2 != !all.mu2.empty() && expected.size() > 0) why = "mu2 missing or unasked";
   for (std::size_t k = 0; why.empty() && k < expected.size(); ++k) {
-    if (all.i[k] != expected.i[k] || all.j[k] != expected.j[k])
+    if (all.i[k] != tag_of(expected.i[k]) || all.j[k] != tag_of(expected.j[k]))
       why = "pair " + std::to_string(k) + " is (" + std::to_string(all.i[k]) + ", " +
-            std::to_string(all.j[k]) + "), expected (" + std::to_string(expected.i[k]) + ", " +
-            std::to_string(expected.j[k]) + ")";
+            std::to_string(all.j[k]) + "), expected (" + std::to_string(tag_of(expected.i[k])) +
+            ", " + std::to_string(tag_of(expected.j[k])) + ")";
     else if (with_mu2 && !(all.mu2[k] == expected.mu2[k]))
       why = "pair " + std::to_string(k) + ": mu2 " + std::to_string(all.mu2[k]) + " vs " +
             std::to_string(expected.mu2[k]);
@@ -256,6 +264,8 @@ int main(int argc, char** argv) {
     check(random_scene("open", Box::open(), 3000, {26, 22, 24}, 1.0, 1, 12), 1.2, true);
     const Box tilted = Box::triclinic(24, 22, 20, 0.3, -0.2, 0.25);
     check(random_scene("triclinic", tilted, 2500, {30, 24, 20}, 1.0, 1, 13), 1.1, true);
+    check(random_scene("triclinic, tags over 64 bits", tilted, 2500, {30, 24, 20}, 1.0, 1, 25), 1.1,
+          true, Start::round_robin, false, true);
     check(random_scene("triclinic, 2 cells per axis", Box::triclinic(6, 6.5, 6, 0.3, -0.2, 0.25),
                        150, {6, 6.5, 6}, 0.8, 1.2, 22),
           1.1, true);

@@ -40,6 +40,7 @@
 #include "number_text.hpp"
 #include "pwcontact/mpi.hpp"
 #include "screen/cell_lists.hpp"
+#include "screen/radix_sort.hpp"
 #include "thread_count.hpp"
 
 namespace pwcontact::detail {
@@ -626,32 +627,49 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
     const double* record = ghosts.data() + p * ParticleRecord::doubles;
     entries.push_back({ParticleRecord::tag(record), record, false});
   }
-  std::sort(entries.begin(), entries.end(),
-            [](const Entry& x, const Entry& y) { return x.tag < y.tag; });
+  // (By the tags' digits, not by comparisons: std::sort took a third of
+  // the time the local store and the owner rule take on a 1M-particle rank.
+  // Stable, so a tag given twice is found next to itself.)
+  screen::radix_sort_pair_keys(entries, 32, [](const Entry& e) { return e.tag; });
   for (std::size_t k = 1; k < entries.size(); ++k)
     if (entries[k].tag == entries[k - 1].tag) {
       error = "tag " + std::to_string(entries[k].tag) + " is given to two particles";
       break;
     }
   throw_if_any(cart, error);
+  const int threads = pwcontact::detail::thread_count(options.threads, "screen_pairs (MPI)");
   ParticleStore store;
   ScreenedPairs pairs;
   try {
-    store.reserve(entries.size());
-    for (const Entry& e : entries) store.add_particle(ParticleRecord::read(e.record));
+    // Sized once and filled in parallel (added one at a time, every array
+    // of the store grew particle by particle).
+    store.resize(entries.size());
+    const std::ptrdiff_t count = std::ptrdiff_t(entries.size());
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (std::ptrdiff_t k = 0; k < count; ++k)
+      store.set_particle(std::size_t(k), ParticleRecord::read(entries[std::size_t(k)].record));
     report.screen = workspace ? pwcontact::screen_pairs(store, box, agreed, pairs, *workspace)
                               : pwcontact::screen_pairs(store, box, agreed, pairs);
   } catch (const std::exception& e) {
     error = e.what();
   }
   throw_if_any(cart, error);
+  // The owner rule. The pairs come by their first particle, and their second
+  // is anywhere in the store: its radius (the store's, the record's number)
+  // and its entry are fetched a few pairs ahead (each a cache miss
+  // otherwise, most of the rule's time).
+  const std::vector<double>& bounding = store.bounding_radius();
+  constexpr std::size_t ahead = 16;
   for (std::size_t k = 0; k < pairs.size(); ++k) {
-    const Entry& a = entries[pairs.i[k]];  // (the smaller tag)
-    const Entry& b = entries[pairs.j[k]];
-    const bool keeper_own = b.record[10] < a.record[10] ? b.own : a.own;
+    if (k + ahead < pairs.size()) {
+      __builtin_prefetch(&bounding[pairs.j[k + ahead]]);
+      __builtin_prefetch(&entries[pairs.j[k + ahead]]);
+    }
+    const std::uint32_t a = pairs.i[k], b = pairs.j[k];  // (a has the smaller tag)
+    const bool keeper_own = bounding[b] < bounding[a] ? entries[b].own : entries[a].own;
     if (!keeper_own) continue;
-    out.i.push_back(a.tag);
-    out.j.push_back(b.tag);
+    out.i.push_back(entries[a].tag);
+    out.j.push_back(entries[b].tag);
     if (options.with_mu2) out.mu2.push_back(pairs.mu2[k]);
   }
   report.seconds_screen = MPI_Wtime() - exchanged;
