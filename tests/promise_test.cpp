@@ -1257,6 +1257,55 @@ TEST_P(Promise, AccuracyHighMeetsItsBoundWhereTheGainIsNoise) {
     }
 }
 
+// Pairs an adversarial search found (cond(Q(lambda*)) 1.3e8 .. 4.5e8,
+// lambda* 1.1e-3 .. 1.5e-3 from an end, just inside the kernels' reach in
+// accuracy high): g, taken in plain double from the refined s, was off by
+// ~eps cond f / min(lambda, 1 - lambda) (1e-5 f), and lanes 8e-9 from
+// lambda* passed the convergence test with mu^2 1.7 to 3.5 times beyond the
+// bound, status ok. (mu^2 of a 400-bit golden-section search: 66428307324607.458969,
+// 11901460723544.673832 and 332510322844.27771163; the oracle here is the
+// tests' own, in 50 digits.)
+TEST_P(Promise, AccuracyHighMeetsItsBoundWhereTheRefinedSlopeCancels) {
+  std::vector<Pair<double>> pairs(3);
+  pairs[0] = {{-8438870.8936970215, -3979040.7254238529, 2887945.0306417244},
+              {0.10779154436307205, 0.096069230126238664, -0.29486137480142793, 0.98965567192427006,
+               0.031749424803327313, 0.90255278371272385},
+              {52180.120175854776, 3862.8011697304473, -51663.655023344392, 103328.29771307812,
+               3879.7275583737846, 51728.338431788769}};
+  pairs[1] = {{-29072.843783893233, -3497065.8718231115, 1800142.2689859078},
+              {0.094957061056794134, -0.018946981302940497, -0.29254233152498599,
+               0.99960334688549335, -0.0061243437711306211, 0.90543982826493818},
+              {24458.408405292528, 4108.422262537254, -20998.446852661316, 42274.709598360954,
+               4608.9443236430989, 19619.814529370917}};
+  pairs[2] = {{746.19347758186427, 576.93313490641947, 865.29310043531484},
+              {0.54102437960752725, 0.053981613414534099, -0.49538165659166705, 0.99365104712022689,
+               0.058263445574551626, 0.46532457327981969},
+              {4.8747905504994573e-06, -4.8227923476635318e-08, 3.9453023121490948e-08,
+               1.9551719821006281e-06, 2.3890558105762371e-06, 2.921211446549936e-06}};
+  const Solved set = solved(pairs);
+  const double expected[3] = {66428307324607.458969, 11901460723544.673832, 332510322844.27771163};
+  for (std::size_t i = 0; i < 3; ++i) {
+    ASSERT_EQ(set.exact[i].status, Status::ok);
+    // (Two oracles agreeing: both rounded to double, an ulp apart at most.)
+    EXPECT_LE(relative_error(double(set.exact[i].mu2), expected[i]), 2.3e-16);
+  }
+  for (auto formulation : {pwcontact::Formulation::newton, pwcontact::Formulation::log_odds})
+    for (bool lambda_asked : {false, true}) {
+      const std::string label =
+          what("slopes that cancel", GetParam(), Precision::double_precision) + ", " +
+          (formulation == pwcontact::Formulation::newton ? "newton" : "log_odds") +
+          ", accuracy high" + (lambda_asked ? ", with lambda" : ", mu2 only");
+      Requested requested;
+      requested.lambda = lambda_asked;
+      const BatchRun<double> run =
+          run_batch(make_batch(set.pairs),
+                    with_precision(with_isa(GetParam()), Precision::double_precision, formulation,
+                                   Accuracy::high),
+                    requested);
+      expect_accuracy_high_bound(set, run, label, true);
+    }
+}
+
 // The reference path on the same family: noise in g of ~eps cond(Q) mu^2
 // once made Newton alternate between the two ends of its bracket, each step
 // landing exactly on the other end, until max_iterations: not_converged on

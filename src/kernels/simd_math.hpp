@@ -368,8 +368,10 @@ struct Compensated {
 // copies (a cold call must not make the caller's registers escape to memory)
 // and returns f and the refined s.
 // With the refined s also g = lambda^2 s^T Q2 s - mu^2 s^T Q1 s (eq. 13)
-// again: from the rounded s its noise is ~eps cond f / w, which the
-// convergence test's gain and bound would otherwise take at face value.
+// again, its forms accumulated error-free as well: from the rounded s, or
+// in plain double from the refined one, its noise is ~eps cond f / w,
+// which the convergence test's gain and bound would otherwise take at face
+// value.
 template <class B>
 struct Refined {
   B f;
@@ -408,10 +410,33 @@ PWCONTACT_COLD Refined<B> refined_f(const PairLanes<B> p, const Ldlt<B> ldlt, co
   for (int i = 0; i < 3; ++i) rs.add_product(p.r[i], correction[i]);
   for (int i = 0; i < 3; ++i) current.s[i] += correction[i];
   current.f = lambda * mu * rs.value();
-  B q1s[3], q2s[3];
-  symmetric_times(p.q1, current.s, q1s);
-  symmetric_times(p.q2, current.s, q2s);
-  current.g = lambda * lambda * dot3(current.s, q2s) - mu * mu * dot3(current.s, q1s);
+  // g from the refined s in the same arithmetic: its two terms are each
+  // ~f / w (w = min(lambda, mu)) and cancel at lambda*, and s^T Q s taken in
+  // double errs by ~eps cond(Q) of itself, so that g computed plainly from
+  // even an exact s is off by ~eps cond f / w (1e-5 f at cond 2e8 and
+  // lambda* 1.5e-3 from 0): lanes 8e-9 from lambda* passed the convergence
+  // test with mu^2 3.5 times beyond Accuracy::high's bound, status ok.
+  auto form = [&current](const B* q) {
+    Compensated<B> acc{B(0), B(0)};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        B product, error;
+        two_product(q[row[i][j]], current.s[j], product, error);
+        acc.add_product(current.s[i], product);
+        acc.lo += current.s[i] * error;
+      }
+    return acc;
+  };
+  const Compensated<B> form1 = form(p.q1), form2 = form(p.q2);
+  B lambda2, lambda2e, mu2, mu2e;
+  two_product(lambda, lambda, lambda2, lambda2e);
+  two_product(mu, mu, mu2, mu2e);
+  Compensated<B> g{B(0), B(0)};  // lambda^2 s^T Q2 s - mu^2 s^T Q1 s (eq. 13)
+  g.add_product(lambda2, form2.hi);
+  g.lo += lambda2 * form2.lo + lambda2e * form2.hi;
+  g.add_product(-mu2, form1.hi);
+  g.lo -= mu2 * form1.lo + mu2e * form1.hi;
+  current.g = g.value();
   return current;
 }
 
