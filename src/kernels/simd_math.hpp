@@ -416,12 +416,14 @@ PWCONTACT_COLD Refined<B> refined_f(const PairLanes<B> p, const Ldlt<B> ldlt, co
   // even an exact s is off by ~eps cond f / w (1e-5 f at cond 2e8 and
   // lambda* 1.5e-3 from 0): lanes 8e-9 from lambda* passed the convergence
   // test with mu^2 3.5 times beyond Accuracy::high's bound, status ok.
+  // (Six terms: the off-diagonal ones doubled, exactly.)
   auto form = [&current](const B* q) {
     Compensated<B> acc{B(0), B(0)};
     for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
+      for (int j = i; j < 3; ++j) {
         B product, error;
         two_product(q[row[i][j]], current.s[j], product, error);
+        if (j != i) product = product + product, error = error + error;
         acc.add_product(current.s[i], product);
         acc.lo += current.s[i] * error;
       }
