@@ -480,6 +480,54 @@ TEST(MovingScene, ParallelMovesAreTheMovesOneAfterAnother) {
   expect_same_as_screen(parallel, "after parallel moves");
 }
 
+TEST(MovingScene, ParallelMovesOutOfAnOpenBoxRebuildAsTheMovesOneAfterAnother) {
+  // 100 spheres in an open box, 89 of them (the limit, n / 4 + 64) moved
+  // out of the grid's region one at a time; then two independent moves, the
+  // first taking one more out (one after another: a rebuild before the
+  // second move), the second far along x. The parallel path rebuilt once,
+  // after both: another grid, and queries after it found another particle
+  // first (for 194 of 512 trials that overlap two or more).
+  std::mt19937_64 engine(7);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const std::size_t n = 100;
+  ParticleStore s;
+  for (std::size_t i = 0; i < n; ++i)
+    s.add_axes({10 * unit(engine), 10 * unit(engine), 10 * unit(engine)}, {0.1, 0.1, 0.1},
+               {1, 0, 0, 0});
+  MovingScene parallel(s, Box::open()), serial(s, Box::open());
+  for (std::size_t i = 0; i < 89; ++i) {
+    auto c = parallel.particles().particle_at(i).centre();
+    c[0] = -50 - unit(engine);
+    const Particle p = parallel.particles().particle_at(i).moved_to(c);
+    parallel.move(i, p);
+    serial.move(i, p);
+  }
+  ASSERT_EQ(parallel.counters().rebuilds, serial.counters().rebuilds);
+  const std::uint32_t index[2] = {95, 97};
+  auto c0 = parallel.particles().particle_at(95).centre();
+  auto c1 = parallel.particles().particle_at(97).centre();
+  c0[0] = -50.5;
+  c1[0] = 60;
+  const Particle moved[2] = {parallel.particles().particle_at(95).moved_to(c0),
+                             parallel.particles().particle_at(97).moved_to(c1)};
+  parallel.move_many(index, moved, 2, 2);
+  serial.move_many(index, moved, 2, 1);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(parallel.particles().centre(k), serial.particles().centre(k));
+  EXPECT_EQ(parallel.cells(), serial.cells());
+  EXPECT_EQ(parallel.counters().rebuilds, serial.counters().rebuilds);
+  std::size_t several = 0;
+  for (int t = 0; t < 2000; ++t) {
+    const Particle trial = parallel.trial_axes(
+        {10 * unit(engine), 10 * unit(engine), 10 * unit(engine)}, {3, 3, 3}, {1, 0, 0, 0});
+    if (serial.overlap_count(trial) < 2) continue;
+    ++several;
+    EXPECT_EQ(parallel.overlaps(trial), serial.overlaps(trial)) << "trial " << t;
+  }
+  EXPECT_GT(several, 100u);
+  expect_same_as_screen(parallel, "after parallel moves out of an open box");
+}
+
 TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   std::mt19937_64 engine(13);
   const Box box = Box::periodic_box(6, 6, 6);

@@ -785,20 +785,28 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
       s.check_particle(particles[k], who);
     });
   // Parallel only when every move keeps to cells no other move touches,
-  // needs no rebuild, and finds room in its new cell.
+  // needs no rebuild, and finds room in its new cell. (Open boxes: nor may
+  // the count of particles outside the grid's region pass its limit at any
+  // move, where the moves one after another rebuild the grid in the middle:
+  // the grid, and so the search order of the queries after, depended on the
+  // thread count.)
   if (++s.generation == 0) {
     std::fill(s.stamp.begin(), s.stamp.end(), 0);
     s.generation = 1;
   }
   bool independent = threads != 1 && count > 1;
   std::vector<std::uint32_t> new_cell(independent ? count : 0);
+  std::ptrdiff_t outside = std::ptrdiff_t(s.outside_count);
+  const std::ptrdiff_t outside_most = std::ptrdiff_t(outside_limit(s.store.size()));
   for (std::size_t k = 0; k < count && independent; ++k) {
     const std::size_t i = index[k];
     const std::uint32_t from = s.home[i];
-    const std::uint32_t to = s.cell_of(particles[k].centre());
+    bool inside = true;
+    const std::uint32_t to = s.cell_of(particles[k].centre(), &inside);
     new_cell[k] = to;
+    outside += std::ptrdiff_t(!inside) - std::ptrdiff_t(s.outside[i]);
     independent = particles[k].bounding_radius() <= s.grid_radius && (to == from || !s.full(to)) &&
-                  s.stamp[from] != s.generation;
+                  outside <= outside_most && s.stamp[from] != s.generation;
     s.stamp[from] = s.generation;
     if (to != from) {
       independent = independent && s.stamp[to] != s.generation;
@@ -831,7 +839,6 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   s.outside_count = std::size_t(std::ptrdiff_t(s.outside_count) + outside_change);
   s.counters.cell_changes += changes;
   s.counters.moves += count;
-  if (s.outside_count > outside_limit(s.store.size())) s.rebuild(0);
 }
 
 namespace {
