@@ -528,6 +528,30 @@ TEST(MovingScene, ParallelMovesOutOfAnOpenBoxRebuildAsTheMovesOneAfterAnother) {
   expect_same_as_screen(parallel, "after parallel moves out of an open box");
 }
 
+TEST(MovingScene, AFarParticleInAnOpenBoxLeavesTheCellsOfTheRest) {
+  // 20,000 spheroids in a cube of side 60 and one at x = 1e9: the cells grew
+  // alike along every axis until one spanned the cube across y and z
+  // (39,720 x 1 x 1, every query comparing thousands of particles). The
+  // region now leaves the outlier to the outer cells.
+  std::mt19937_64 engine(21);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  const Box box = Box::open();
+  for (int n = 0; n < 20000; ++n) s.add_particle(random_particle(engine, s, box, 60));
+  s.add_axes({1e9, 3, 3}, {0.5, 0.2, 0.2}, {1, 0, 0, 0});
+  MovingScene scene(s, box);
+  const auto cells = scene.cells();
+  for (int k = 1; k < 3; ++k) EXPECT_GE(cells[std::size_t(k)], 20) << "axis " << k;
+  expect_same_as_screen(scene, "one particle at x = 1e9");
+  // A trial beside the far particle finds it; moved back among the others,
+  // the far one is found there too.
+  const Particle beside = scene.trial_axes({1e9 + 0.3, 3, 3}, {0.5, 0.2, 0.2}, {1, 0, 0, 0});
+  EXPECT_EQ(scene.overlaps(beside), 20000);
+  scene.move(20000, scene.particles().particle_at(20000).moved_to({30, 30, 30}));
+  expect_same_as_screen(scene, "the far particle moved back");
+}
+
 TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   std::mt19937_64 engine(13);
   const Box box = Box::periodic_box(6, 6, 6);
