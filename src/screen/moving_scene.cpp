@@ -290,7 +290,7 @@ struct MovingScene::Impl {
     screen::ClassGrid g;
     const double cell_side = sized(low, high, g);
     // A few particles far from the rest along an open axis (one at 1e9
-    // beside 20,000 in a box of 30) made the cells grow along every axis
+    // beside 20,000 in a cube of 35) made the cells grow along every axis
     // until there was one across the others (39,720 x 1 x 1 cells, queries
     // 10 times slower). Where the cells had to grow, the region leaves out
     // the farthest 1/64 of the centres at each end of each open axis (at
