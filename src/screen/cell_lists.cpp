@@ -107,6 +107,45 @@ double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<
   return 1e3 * std::numeric_limits<double>::epsilon() * scale;
 }
 
+double size_cells(const BoxGeometry& geometry, const std::array<double, 3>& side,
+                  const std::array<double, 3>& from, const std::array<double, 3>& to, double margin,
+                  double limit, ClassGrid& grid) {
+  for (double wider = 1;;) {
+    double total = 1;
+    for (int k = 0; k < 3; ++k) {
+      const double wide = wider * side[k];
+      const bool periodic = geometry.periodic[k];
+      const double extent = periodic ? geometry.width[k] : to[k] - from[k] + 2 * margin;
+      double cells =
+          periodic ? std::max(1.0, std::floor(extent / wide)) : std::floor(extent / wide) + 1;
+      if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
+      grid.cells[k] = int(cells);
+      grid.inverse_side[k] = periodic ? grid.cells[k] / extent : 1 / wide;
+      total *= grid.cells[k];
+    }
+    if (total <= limit) return wider;
+    wider *= std::cbrt(total / limit) * 1.01;
+  }
+}
+
+void region_without_outliers(const ParticleStore& particles, const BoxGeometry& geometry,
+                             std::array<double, 3>& from, std::array<double, 3>& to) {
+  const std::size_t n = particles.size(), cut = n / 64;
+  if (n == 0) return;
+  std::vector<double> x;
+  for (int k = 0; k < 3; ++k) {
+    if (geometry.periodic[k]) continue;
+    x = particles.centre(k);
+    std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(cut), x.end());
+    const double first = x[cut];
+    std::nth_element(x.begin() + std::ptrdiff_t(cut), x.end() - 1 - std::ptrdiff_t(cut), x.end());
+    const double last = x[n - 1 - cut];
+    if (!std::isfinite(last - first)) continue;  // (the caller's region stands)
+    from[k] = first;
+    to[k] = last;
+  }
+}
+
 std::size_t CellListMemory::bytes() const {
   std::size_t total = size_class.capacity() + cell.capacity() * sizeof(std::uint32_t);
   for (const std::vector<std::uint32_t>& counts : place)
@@ -203,6 +242,9 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     radius[size_class[i]] = std::max(radius[size_class[i]], bounding[i]);
   }
   int compact[max_classes];
+  std::array<double, 3> side[max_classes];
+  double cell_limit[max_classes], grown[max_classes];
+  int most = 0;  // the class with the most members
   for (int c = 0; c < max_classes; ++c) {
     compact[c] = int(lists.grids.size());
     if (members[c] == 0) continue;
@@ -218,24 +260,27 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     // Cells cells_per_reach to the reach of two of the class's largest
     // members; fewer (wider) when that would make too many.
     const double reach = 2 * cutoff * radius[c];
-    const double limit = std::max(64.0, max_cells_per_member * double(members[c]));
-    for (double wider = 1;;) {
-      double total = 1;
-      for (int k = 0; k < 3; ++k) {
-        const double side = wider * reach / cells_per_reach[k];
-        const bool periodic = geometry.periodic[k];
-        const double extent = periodic ? geometry.width[k] : high[k] - low[k];
-        double cells =
-            periodic ? std::max(1.0, std::floor(extent / side)) : std::floor(extent / side) + 1;
-        if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
-        grid.cells[k] = int(cells);
-        grid.inverse_side[k] = periodic ? grid.cells[k] / extent : 1 / side;
-        total *= grid.cells[k];
-      }
-      if (total <= limit) break;
-      wider *= std::cbrt(total / limit) * 1.01;
-    }
+    side[c] = {reach / cells_per_reach[0], reach / cells_per_reach[1], reach / cells_per_reach[2]};
+    cell_limit[c] = std::max(64.0, max_cells_per_member * double(members[c]));
+    grown[c] = size_cells(geometry, side[c], low, high, 0, cell_limit[c], grid);
+    if (members[c] > members[most]) most = c;
     lists.grids.push_back(std::move(grid));
+  }
+  // A few particles far from the rest along an open axis: the grids over
+  // the region without them, when that makes the cells of the class with
+  // the most members at most half as wide (the far ones in the outer cells).
+  if (worth_trimming(n, grown[most])) {
+    std::array<double, 3> from = low, to = high;
+    region_without_outliers(particles, geometry, from, to);
+    ClassGrid trimmed;
+    if (trimmed_is_finer(grown[most], size_cells(geometry, side[most], from, to, 0,
+                                                 cell_limit[most], trimmed))) {
+      for (int c = 0; c < max_classes; ++c)
+        if (members[c] > 0)
+          size_cells(geometry, side[c], from, to, 0, cell_limit[c],
+                     lists.grids[std::size_t(compact[c])]);
+      lists.origin = from;
+    }
   }
 
   // Counting sort of each class's members by cell, in particle order.

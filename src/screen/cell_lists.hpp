@@ -272,6 +272,38 @@ struct CellLists {
 double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
                     const std::array<double, 3>& high);
 
+// The cells of a grid: `side[k]` wide along axis k where that gives at most
+// `limit` cells in all, else grown alike along every axis until it does;
+// across a periodic axis whole cells over the box's width, along an open
+// axis over the region [from[k] - margin, to[k] + margin] (one cell more,
+// for the rounding at its ends). Sets grid.cells and grid.inverse_side and
+// returns the factor by which the cells grew (1: as asked).
+double size_cells(const BoxGeometry& geometry, const std::array<double, 3>& side,
+                  const std::array<double, 3>& from, const std::array<double, 3>& to, double margin,
+                  double limit, ClassGrid& grid);
+
+// The region of the centres along the open axes without the farthest 1/64
+// of them at each end: [from, to] per open axis (periodic axes: unchanged).
+// A few particles far from the rest along an open axis would otherwise make
+// the cells grow alike along every axis until there is one across the
+// others (one particle at x = 1e9 beside 200,000 in a cube: one cell across
+// y and z, every pair compared). Where the cells must grow, a grid over this
+// region instead puts the far ones in its outer cells (cell_of clamps,
+// runs_within stays correct), at most 3/32 of them.
+void region_without_outliers(const ParticleStore& particles, const BoxGeometry& geometry,
+                             std::array<double, 3>& from, std::array<double, 3>& to);
+
+// Whether a grid whose cells grew by `grown` over the whole region is worth
+// the trimmed region's, whose grew by `grown_trimmed`: cells at most half as
+// wide. (Only asked where the cells grew by more than half and there are
+// particles enough for 1/64 of them to mean outliers: 256.)
+inline bool worth_trimming(std::size_t particles, double grown) {
+  return particles >= 256 && grown > 1.5;
+}
+inline bool trimmed_is_finer(double grown, double grown_trimmed) {
+  return grown_trimmed <= 0.5 * grown;
+}
+
 // Memory one build leaves for the next (a ScreenWorkspace's): the last
 // lists' grids, whose arrays the next build's grids take over (by class
 // rank, grown where too small), and the build's own per-particle arrays.

@@ -265,52 +265,23 @@ struct MovingScene::Impl {
     side = 2 * cutoff * radius + 4 * lists.slack;
     // The grid over [low, high] along the open axes: cells of the reach,
     // grown alike along every axis while they are more than twice the
-    // particles (and 64); the side they reach.
+    // particles (and 64); where they had to grow, over the region without
+    // the farthest particles when that makes them at most half as wide (one
+    // at 1e9 beside 20,000 in a cube of 35 made 39,720 x 1 x 1 cells, queries
+    // 10 times slower). The outer cells take everything beyond the region,
+    // as after a move (at most 3/32 of the particles, within outside_limit).
     const double limit = std::max(64.0, 2.0 * double(n));
-    auto sized = [&](const std::array<double, 3>& from, const std::array<double, 3>& to,
-                     screen::ClassGrid& g) {
-      g.largest_reach = cutoff * radius;
-      double cell_side = side;
-      for (;;) {
-        double total = 1;
-        for (int k = 0; k < 3; ++k) {
-          const bool periodic = geometry.periodic[k];
-          const double extent = periodic ? geometry.width[k] : to[k] - from[k] + 2 * side;
-          double c = periodic ? std::max(1.0, std::floor(extent / cell_side))
-                              : std::floor(extent / cell_side) + 1;
-          if (!(c <= 1e6)) c = 1e6;
-          g.cells[k] = int(c);
-          g.inverse_side[k] = periodic ? g.cells[k] / extent : 1 / cell_side;
-          total *= g.cells[k];
-        }
-        if (total <= limit) return cell_side;
-        cell_side *= std::cbrt(total / limit) * 1.01;
-      }
-    };
+    const std::array<double, 3> sides = {side, side, side};
     screen::ClassGrid g;
-    const double cell_side = sized(low, high, g);
-    // A few particles far from the rest along an open axis (one at 1e9
-    // beside 20,000 in a cube of 35) made the cells grow along every axis
-    // until there was one across the others (39,720 x 1 x 1 cells, queries
-    // 10 times slower). Where the cells had to grow, the region leaves out
-    // the farthest 1/64 of the centres at each end of each open axis (at
-    // most 3/32 of them, within outside_limit) when that gives cells at
-    // most half as wide: those particles lie in the outer cells, which
-    // take everything beyond the region (cell_of clamps), as after a move.
-    if (n >= 256 && cell_side > 1.5 * side) {
+    g.largest_reach = cutoff * radius;
+    const double grown = screen::size_cells(geometry, sides, low, high, side, limit, g);
+    if (screen::worth_trimming(n, grown)) {
       std::array<double, 3> from = low, to = high;
-      std::vector<double> x(n);
-      const std::size_t cut = n / 64;
-      for (int k = 0; k < 3; ++k) {
-        if (geometry.periodic[k] || !(high[k] > low[k])) continue;
-        for (std::size_t i = 0; i < n; ++i) x[i] = store.centre(k)[i];
-        std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(cut), x.end());
-        from[k] = x[cut];
-        std::nth_element(x.begin(), x.end() - 1 - std::ptrdiff_t(cut), x.end());
-        to[k] = x[n - 1 - cut];
-      }
+      screen::region_without_outliers(store, geometry, from, to);
       screen::ClassGrid trimmed;
-      if (sized(from, to, trimmed) <= 0.5 * cell_side) {
+      trimmed.largest_reach = g.largest_reach;
+      if (screen::trimmed_is_finer(
+              grown, screen::size_cells(geometry, sides, from, to, side, limit, trimmed))) {
         g = std::move(trimmed);
         low = from;
       }
