@@ -356,6 +356,12 @@ void print_summary() {
     std::printf(
         "\n  %-8s cost linear in N: largest deviation from the mean %.1f %% (target <= 25 %%)\n",
         worst <= 0.25 ? "met" : "NOT MET", worst * 100);
+    // 4M particles within 15 % of the time per particle at 1M.
+    const double growth = per_particle[2].second / per_particle[1].second - 1;
+    std::printf(
+        "  %-8s 4,000,000 spheroids: %.3f us a particle, %+.1f %% of 1,000,000's (target within "
+        "+-15 %%)\n",
+        std::abs(growth) <= 0.15 ? "met" : "NOT MET", per_particle[2].second * 1e6, growth * 100);
   }
   const double triclinic = time_of("screen", 1000000, 2, "triclinic"),
                orthorhombic = time_of("screen", 1000000, 2);
