@@ -800,6 +800,7 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   }
   bool independent = threads != 1 && count > 1;
   std::vector<std::uint32_t> new_cell(independent ? count : 0);
+  std::vector<std::uint8_t> new_inside(independent ? count : 0);  // (within the grid's region)
   std::ptrdiff_t outside = std::ptrdiff_t(s.outside_count);
   const std::ptrdiff_t outside_most = std::ptrdiff_t(outside_limit(s.store.size()));
   for (std::size_t k = 0; k < count && independent; ++k) {
@@ -808,6 +809,7 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
     bool inside = true;
     const std::uint32_t to = s.cell_of(particles[k].centre(), &inside);
     new_cell[k] = to;
+    new_inside[k] = inside;
     outside += std::ptrdiff_t(!inside) - std::ptrdiff_t(s.outside[i]);
     independent = particles[k].bounding_radius() <= s.grid_radius && (to == from || !s.full(to)) &&
                   outside <= outside_most && s.stamp[from] != s.generation;
@@ -827,8 +829,7 @@ void MovingScene::move_many(const std::uint32_t* index, const Particle* particle
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t i = index[k];
     s.store.set_particle(i, particles[k]);  // (cannot throw: checked above)
-    bool inside = true;
-    s.cell_of(particles[k].centre(), &inside);
+    const bool inside = new_inside[k];
     outside_change += std::ptrdiff_t(!inside) - std::ptrdiff_t(s.outside[i]);
     s.outside[i] = !inside;
     const std::size_t from = s.home[i];
