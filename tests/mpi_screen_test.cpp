@@ -339,6 +339,36 @@ int main(int argc, char** argv) {
       };
       check(scene, 1.0, true);
     }
+    // A few particles far from the rest in open boundaries: the slabs split
+    // the region without them (one at x = 1e9 beside 200,000 left every
+    // other particle to one rank of two), and the pairs stay the single
+    // screen's, the far ones' included.
+    for (const Start start : {Start::round_robin, Start::last_rank}) {
+      Scene scene = random_scene("", Box::open(), 3000, {26, 22, 24}, 1.0, 1, 26);
+      scene.name = start == Start::round_robin ? "far particles, open"
+                                               : "far particles, open, all on the last rank";
+      const auto near = scene.add;
+      const std::size_t n = scene.size;
+      scene.size = n + 4;
+      scene.add = [near, n](ParticleStore& s, std::size_t k) {
+        const std::array<std::array<double, 3>, 4> far = {
+            {{1e9, 5, 5}, {-1e9, 5, 5}, {-1e9 + 0.6, 5, 5}, {5, 5, -3e8}}};
+        if (k < n)
+          near(s, k);
+        else
+          s.add_axes(far[k - n], {0.5, 0.5, 1}, {1, 0, 0, 0});
+      };
+      const pwcontact::mpi::DistributedReport report = check(scene, 1.0, true, start);
+      // Every rank owns a share of the near ones (a quarter of an even share).
+      unsigned long long owned = report.owned, fewest = 0;
+      MPI_Allreduce(&owned, &fewest, 1, MPI_UNSIGNED_LONG_LONG, MPI_MIN, MPI_COMM_WORLD);
+      const bool balanced = fewest >= n / std::size_t(4 * ranks);
+      if (rank == 0) {
+        std::printf("%-40s %d ranks: %s %llu particles\n", "far particles, slabs", ranks,
+                    balanced ? "the fewest a rank owns is" : "WRONG: a rank owns only", fewest);
+        if (!balanced) ++failures;
+      }
+    }
     // Ghost layers per size: one large particle added to a scene of small
     // ones changes what every rank receives by at most itself, the rank that
     // owns it included (small particles go as far as twice their own reach,

@@ -147,8 +147,9 @@ struct Handles {
 
 // The Cartesian grid of ranks over the box: along each axis, a particle's
 // unit coordinate t in [0, 1] (periodic: its fractional coordinate s - floor
-// s; open: (x - low) / (high - low) over the centres of every rank) falls in
-// slab floor(t dims).
+// s; open: (x - low) / (high - low) over the centres of every rank, or over
+// the region trim_open_slabs leaves, clamped to [0, 1]) falls in slab
+// floor(t dims).
 struct Decomposition {
   screen::BoxGeometry geometry;
   std::array<int, 3> dims = {1, 1, 1}, coords = {0, 0, 0};
@@ -173,6 +174,55 @@ struct Decomposition {
     return c >= double(d - 1) ? d - 1 : (c > 0 ? int(c) : 0);
   }
 };
+
+// A few particles far from the rest along an open axis: the slabs split
+// the centres' whole extent, so one particle at x = 1e9 beside 200,000 in a
+// cube left every particle but itself to one of two ranks. Where cells of
+// the largest reach over the whole extent would be more than twice the
+// particles of all ranks (as where the cell lists grow), the slabs split
+// instead the region without the farthest 1/64 of the centres at each end
+// of each open axis: the lowest of the ranks' 1/64 quantiles to the highest
+// of their 63/64 (ranks of 256 particles or more; the same numbers on every
+// rank), when it is at most half the extent. The end slabs take the rest
+// (Decomposition::unit clamps), and the ghost test stays exact: clamping
+// is monotone and shrinks distances, so a partner within a reach of a
+// subdomain is within it in unit coordinates too.
+void trim_open_slabs(MPI_Comm comm, const ParticleStore& particles,
+                     const screen::BoxGeometry& geometry, double largest_reach,
+                     std::array<double, 3>& low, std::array<double, 3>& extent) {
+  const std::size_t n = particles.size();
+  unsigned long long mine = n, total = 0;
+  MPI_Allreduce(&mine, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+  double cells = 1;
+  for (int k = 0; k < 3; ++k)
+    cells *= geometry.periodic[k]
+                 ? std::max(1.0, std::floor(geometry.width[std::size_t(k)] / largest_reach))
+                 : extent[std::size_t(k)] / largest_reach + 1;
+  if (!(cells > 2.0 * double(total)) || !(largest_reach > 0)) return;
+  // Per open axis: -(the lowest 1/64 quantile), the highest 63/64 quantile.
+  double quantiles[6], bounds[6];
+  for (double& q : quantiles) q = -std::numeric_limits<double>::infinity();
+  if (n >= 256) {
+    const std::size_t cut = n / 64;
+    std::vector<double> x;
+    for (int k = 0; k < 3; ++k) {
+      if (geometry.periodic[k]) continue;
+      x = particles.centre(k);
+      std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(cut), x.end());
+      quantiles[k] = -x[cut];
+      std::nth_element(x.begin() + std::ptrdiff_t(cut), x.end() - 1 - std::ptrdiff_t(cut), x.end());
+      quantiles[3 + k] = x[n - 1 - cut];
+    }
+  }
+  MPI_Allreduce(quantiles, bounds, 6, MPI_DOUBLE, MPI_MAX, comm);
+  for (int k = 0; k < 3; ++k) {
+    const auto K = std::size_t(k);
+    const double from = -bounds[k], to = bounds[3 + k];
+    if (geometry.periodic[k] || !(to >= from) || !(to - from <= 0.5 * extent[K])) continue;
+    low[K] = from;
+    extent[K] = to - from;
+  }
+}
 
 // Records (ParticleRecord::doubles each) by destination, packed for a
 // v-collective: counts and displacements in records.
@@ -392,13 +442,21 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   std::array<int, 3> dims = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);
-    if (geometry.periodic[k]) {
-      grid.width[K] = geometry.width[K];
-    } else if (global_max[1 + k] >= -global_max[4 + k]) {
+    if (!geometry.periodic[k] && global_max[1 + k] >= -global_max[4 + k]) {
       grid.low[K] = -global_max[4 + k];
       grid.extent[K] = global_max[1 + k] - grid.low[K];
-      grid.width[K] = grid.extent[K];
     }
+  }
+  // The coarse test's slack, from the centres' whole extent (below).
+  std::array<double, 3> low_high = {0, 0, 0};
+  for (int k = 0; k < 3; ++k)
+    low_high[std::size_t(k)] =
+        std::max(std::abs(grid.low[std::size_t(k)]),
+                 std::abs(grid.low[std::size_t(k)] + grid.extent[std::size_t(k)]));
+  trim_open_slabs(comm, particles, geometry, largest_reach, grid.low, grid.extent);
+  for (int k = 0; k < 3; ++k) {
+    const auto K = std::size_t(k);
+    grid.width[K] = geometry.periodic[k] ? geometry.width[K] : grid.extent[K];
     // No split along an axis of no extent (a plane of centres in open
     // boundaries), nor along the z of a two-dimensional box, whatever z its
     // centres have.
@@ -429,11 +487,6 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   // the ranks r whose subdomain lies within cutoff (R_j + min(R_j,
   // R_max(r))) of its centre (cell-space distance / width), plus a slack for
   // the rounding of the coordinates (as the cell lists' coarse test).
-  std::array<double, 3> low_high = {0, 0, 0};
-  for (int k = 0; k < 3; ++k)
-    low_high[std::size_t(k)] =
-        std::max(std::abs(grid.low[std::size_t(k)]),
-                 std::abs(grid.low[std::size_t(k)] + grid.extent[std::size_t(k)]));
   const double slack =
       screen::coarse_slack(geometry, std::max(largest_reach, global_max[7]), low_high, low_high);
   auto unit_reach = [&](int k, double reach) {
