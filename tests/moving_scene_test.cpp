@@ -540,6 +540,9 @@ TEST(MovingScene, AFarParticleInAnOpenBoxLeavesTheCellsOfTheRest) {
   const Box box = Box::open();
   for (int n = 0; n < 20000; ++n) s.add_particle(random_particle(engine, s, box, 60));
   s.add_axes({1e9, 3, 3}, {0.5, 0.2, 0.2}, {1, 0, 0, 0});
+  // And one so far that eps of its coordinate is 2: the coarse test's slack
+  // (and so the cells' side) was taken from the coordinates, 4 x 200 wide.
+  s.add_axes({-1e16, 3, 3}, {0.5, 0.2, 0.2}, {1, 0, 0, 0});
   MovingScene scene(s, box);
   const auto cells = scene.cells();
   for (int k = 1; k < 3; ++k) EXPECT_GE(cells[std::size_t(k)], 20) << "axis " << k;

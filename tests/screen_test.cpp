@@ -558,11 +558,15 @@ TEST(Screen, AFewFarParticlesInAnOpenBoxLeaveTheCellsOfTheRestFine) {
   ParticleStore s = make_scene(spec);
   ScreenedPairs near;
   const std::size_t compared_without = screen(s, Box::open(), 1, near).candidate_pairs;
-  // One far along x, an overlapping pair far the other way, one far along z.
+  // One far along x, an overlapping pair far the other way, one far along z
+  // (and one farther, below).
   s.add_axes({1e9, 5, 5}, {0.5, 0.5, 1}, {1, 0, 0, 0});
   s.add_axes({-1e9, 5, 5}, {0.5, 0.5, 1}, {1, 0, 0, 0});
   s.add_axes({-1e9 + 0.6, 5, 5}, {0.5, 0.5, 1}, {1, 0, 0, 0});
   s.add_axes({5, 5, -3e8}, {0.5, 0.5, 1}, {1, 0, 0, 0});
+  // One so far that eps of its coordinate is 7 (the coarse test's slack was
+  // taken from the coordinates, and every window then spanned the grid).
+  s.add_axes({3e16, 5, 5}, {0.5, 0.5, 1}, {1, 0, 0, 0});
   ScreenedPairs got;
   const ScreenReport report = screen(s, Box::open(), 1, got);
   // The far ones add a few compares each, not the scene's every pair (1.1M

@@ -406,27 +406,25 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   Decomposition grid;
   grid.geometry = screen::BoxGeometry(box);
   const screen::BoxGeometry& geometry = grid.geometry;
-  // The largest bounding radius, the extent of the centres along the open
-  // axes and the largest centre coordinate (for the slack), over all ranks.
-  double local_max[8] = {0,
+  // The largest bounding radius and the extent of the centres along each
+  // axis, over all ranks.
+  double local_max[7] = {0,
                          -std::numeric_limits<double>::infinity(),
                          -std::numeric_limits<double>::infinity(),
                          -std::numeric_limits<double>::infinity(),
                          -std::numeric_limits<double>::infinity(),
                          -std::numeric_limits<double>::infinity(),
-                         -std::numeric_limits<double>::infinity(),
-                         0};
+                         -std::numeric_limits<double>::infinity()};
   for (std::size_t k = 0; k < particles.size(); ++k) {
     local_max[0] = std::max(local_max[0], particles.bounding_radius()[k]);
     for (int a = 0; a < 3; ++a) {
       const double x = particles.centre(a)[k];
       local_max[1 + a] = std::max(local_max[1 + a], x);
       local_max[4 + a] = std::max(local_max[4 + a], -x);  // -low
-      local_max[7] = std::max(local_max[7], std::abs(x));
     }
   }
-  double global_max[8];
-  MPI_Allreduce(local_max, global_max, 8, MPI_DOUBLE, MPI_MAX, comm);
+  double global_max[7];
+  MPI_Allreduce(local_max, global_max, 7, MPI_DOUBLE, MPI_MAX, comm);
   const double largest_radius = global_max[0];
   const double largest_reach = options.cutoff * 2 * largest_radius;
   if (box.periodic) {
@@ -447,12 +445,6 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
       grid.extent[K] = global_max[1 + k] - grid.low[K];
     }
   }
-  // The coarse test's slack, from the centres' whole extent (below).
-  std::array<double, 3> low_high = {0, 0, 0};
-  for (int k = 0; k < 3; ++k)
-    low_high[std::size_t(k)] =
-        std::max(std::abs(grid.low[std::size_t(k)]),
-                 std::abs(grid.low[std::size_t(k)] + grid.extent[std::size_t(k)]));
   trim_open_slabs(comm, particles, geometry, largest_reach, grid.low, grid.extent);
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);
@@ -487,8 +479,15 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   // the ranks r whose subdomain lies within cutoff (R_j + min(R_j,
   // R_max(r))) of its centre (cell-space distance / width), plus a slack for
   // the rounding of the coordinates (as the cell lists' coarse test).
+  // (Periodic axes: centres may lie any number of box lengths away, and their
+  // fractional coordinates err by eps of their size; open axes: as the cell
+  // lists' coordinates from the origin of their region, screen::coarse_slack.)
+  double periodic_coordinates = 0;
+  for (int k = 0; k < 3; ++k)
+    if (geometry.periodic[k])
+      periodic_coordinates = std::max({periodic_coordinates, global_max[1 + k], global_max[4 + k]});
   const double slack =
-      screen::coarse_slack(geometry, std::max(largest_reach, global_max[7]), low_high, low_high);
+      screen::coarse_slack(geometry, std::max(largest_reach, periodic_coordinates), grid.extent);
   auto unit_reach = [&](int k, double reach) {
     const double w = grid.width[std::size_t(k)];
     return w > 0 ? (reach + slack) / w + 8 * std::numeric_limits<double>::epsilon()

@@ -96,14 +96,14 @@ void BoxGeometry::wrap_far(const double x[3], double w[3]) const {
   for (int r = 0; r < 3; ++r) w[r] = periodic[r] ? hi[r] + lo[r] : x[r];
 }
 
-double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
-                    const std::array<double, 3>& high) {
+double coarse_slack(const BoxGeometry& geometry, double reach,
+                    const std::array<double, 3>& open_width) {
   double scale = reach;
   for (int k = 0; k < 3; ++k)
     scale = geometry.periodic[k]
                 ? std::max(scale, std::abs(geometry.h[k][0]) + std::abs(geometry.h[k][1]) +
                                       std::abs(geometry.h[k][2]))
-                : std::max({scale, std::abs(low[k]), std::abs(high[k])});
+                : std::max(scale, open_width[std::size_t(k)] + 2 * reach);
   return 1e3 * std::numeric_limits<double>::epsilon() * scale;
 }
 
@@ -218,7 +218,6 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
   }
   lists.origin = low;
-  lists.slack = coarse_slack(geometry, 2 * cutoff * largest, low, high);
   lists.cutoff = cutoff;
   lists.largest_reach = cutoff * largest;
 
@@ -280,8 +279,13 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
           size_cells(geometry, side[c], from, to, 0, cell_limit[c],
                      lists.grids[std::size_t(compact[c])]);
       lists.origin = from;
+      high = to;
     }
   }
+  std::array<double, 3> width{};  // of the grids' region along the open axes
+  for (int k = 0; k < 3; ++k)
+    if (!geometry.periodic[k]) width[std::size_t(k)] = high[k] - lists.origin[k];
+  lists.slack = coarse_slack(geometry, 2 * cutoff * largest, width);
 
   // Counting sort of each class's members by cell, in particle order.
   std::vector<std::uint32_t>& cell = kept.cell;

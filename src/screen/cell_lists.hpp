@@ -263,14 +263,22 @@ struct CellLists {
   }
 };
 
-// The coarse test's slack for a largest reach and the extent [low, high] of
-// the centres along the open axes: the wrapped positions are within a few
-// eps of the largest coordinate (or box length) of their exact values, and
-// the reach within a few eps of itself; a thousand times both. (Periodic:
-// the wrapped positions, within the box whatever the centres: their
-// coordinates at most the sum of a row of h.)
-double coarse_slack(const BoxGeometry& geometry, double reach, const std::array<double, 3>& low,
-                    const std::array<double, 3>& high);
+// The coarse test's slack for a largest reach and the width of the grid's
+// region along each open axis: the wrapped positions are within a few eps
+// of the box's lengths of their exact values, the cell-space coordinates
+// within a few eps of their own size, and the reach within a few eps of
+// itself; a thousand times the largest. (Periodic: the wrapped positions,
+// within the box whatever the centres: their coordinates at most the sum of
+// a row of h. Open: a centre is its own wrapped position, exact, and its
+// cell-space coordinate x - origin errs by eps of itself, at most the
+// region's width plus a reach for a member within a reach of one inside
+// it; members beyond that lie in the outer cells, as do their partners,
+// whatever the rounding. So the centres' distance from the origin of
+// coordinates, or a particle far from the rest, does not widen the slack:
+// taken from the coordinates, one particle at x = 1e15 made every window
+// span the grid.)
+double coarse_slack(const BoxGeometry& geometry, double reach,
+                    const std::array<double, 3>& open_width);
 
 // The cells of a grid: `side[k]` wide along axis k where that gives at most
 // `limit` cells in all, else grown alike along every axis until it does;
@@ -294,14 +302,14 @@ void region_without_outliers(const ParticleStore& particles, const BoxGeometry& 
                              std::array<double, 3>& from, std::array<double, 3>& to);
 
 // Whether a grid whose cells grew by `grown` over the whole region is worth
-// the trimmed region's, whose grew by `grown_trimmed`: cells at most half as
-// wide. (Only asked where the cells grew by more than half and there are
-// particles enough for 1/64 of them to mean outliers: 256.)
+// the trimmed region's: asked where the cells grew by more than half and
+// there are particles enough for 1/64 of them to mean outliers (256), and
+// taken when its cells are at most half as wide.
 inline bool worth_trimming(std::size_t particles, double grown) {
   return particles >= 256 && grown > 1.5;
 }
-inline bool trimmed_is_finer(double grown, double grown_trimmed) {
-  return grown_trimmed <= 0.5 * grown;
+inline bool trimmed_is_finer(double cell_side, double trimmed_cell_side) {
+  return trimmed_cell_side <= 0.5 * cell_side;
 }
 
 // Memory one build leaves for the next (a ScreenWorkspace's): the last

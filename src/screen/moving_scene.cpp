@@ -257,11 +257,18 @@ struct MovingScene::Impl {
       low[k] = lo;
       high[k] = hi;
     }
-    lists.slack = screen::coarse_slack(geometry, 2 * cutoff * radius, low, high);
     lists.cutoff = cutoff;
     lists.largest_reach = cutoff * radius;
     // Open axes: the region covered reaches a cell beyond the particles on
-    // each side, for the ones that move a little.
+    // each side, for the ones that move a little; the slack is the region's
+    // (screen::coarse_slack).
+    auto slack_over = [&](const std::array<double, 3>& from, const std::array<double, 3>& to) {
+      std::array<double, 3> width{};
+      for (int k = 0; k < 3; ++k)
+        if (!geometry.periodic[k]) width[std::size_t(k)] = to[k] - from[k];
+      return screen::coarse_slack(geometry, 2 * cutoff * radius, width);
+    };
+    lists.slack = slack_over(low, high);
     side = 2 * cutoff * radius + 4 * lists.slack;
     // The grid over [low, high] along the open axes: cells of the reach,
     // grown alike along every axis while they are more than twice the
@@ -280,10 +287,16 @@ struct MovingScene::Impl {
       screen::region_without_outliers(store, geometry, from, to);
       screen::ClassGrid trimmed;
       trimmed.largest_reach = g.largest_reach;
-      if (screen::trimmed_is_finer(
-              grown, screen::size_cells(geometry, sides, from, to, side, limit, trimmed))) {
+      const double slack = slack_over(from, to);
+      const double trimmed_side = 2 * cutoff * radius + 4 * slack;
+      const double trimmed_grown =
+          screen::size_cells(geometry, {trimmed_side, trimmed_side, trimmed_side}, from, to,
+                             trimmed_side, limit, trimmed);
+      if (screen::trimmed_is_finer(grown * side, trimmed_grown * trimmed_side)) {
         g = std::move(trimmed);
         low = from;
+        lists.slack = slack;
+        side = trimmed_side;
       }
     }
     for (int k = 0; k < 3; ++k) lists.origin[k] = geometry.periodic[k] ? 0 : low[k] - side;
