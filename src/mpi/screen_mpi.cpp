@@ -202,16 +202,14 @@ void trim_open_slabs(MPI_Comm comm, const ParticleStore& particles,
   // Per open axis: -(the lowest 1/64 quantile), the highest 63/64 quantile.
   double quantiles[6], bounds[6];
   for (double& q : quantiles) q = -std::numeric_limits<double>::infinity();
-  if (n >= 256) {
-    const std::size_t cut = n / 64;
-    std::vector<double> x;
+  if (n >= 256) {  // (the cell lists' region of this rank's centres)
+    std::array<double, 3> from, to;
+    from.fill(std::numeric_limits<double>::infinity());
+    to.fill(-std::numeric_limits<double>::infinity());
+    screen::region_without_outliers(particles, geometry, from, to);
     for (int k = 0; k < 3; ++k) {
-      if (geometry.periodic[k]) continue;
-      x = particles.centre(k);
-      std::nth_element(x.begin(), x.begin() + std::ptrdiff_t(cut), x.end());
-      quantiles[k] = -x[cut];
-      std::nth_element(x.begin() + std::ptrdiff_t(cut), x.end() - 1 - std::ptrdiff_t(cut), x.end());
-      quantiles[3 + k] = x[n - 1 - cut];
+      quantiles[k] = -from[std::size_t(k)];
+      quantiles[3 + k] = to[std::size_t(k)];
     }
   }
   MPI_Allreduce(quantiles, bounds, 6, MPI_DOUBLE, MPI_MAX, comm);
