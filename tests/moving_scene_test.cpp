@@ -555,6 +555,44 @@ TEST(MovingScene, AFarParticleInAnOpenBoxLeavesTheCellsOfTheRest) {
   expect_same_as_screen(scene, "the far particle moved back");
 }
 
+TEST(MovingScene, ClustersFarApartInAnOpenBoxKeepFineCellsAndLoseNoPairAcrossTheFold) {
+  // Two clusters of 3,000 1e6 apart along x: the cells grew over the whole
+  // span (27,000 x 1 x 1). The empty stretch between them is now folded out
+  // of cell space (screen::fold_empty_stretches). Particles then moved into
+  // the folded stretch, about its ends and into its middle, where the fold
+  // maps a whole stretch to one point, must still find every partner.
+  std::mt19937_64 engine(29);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  const Box box = Box::open();
+  for (int n = 0; n < 6000; ++n) {
+    Particle p = random_particle(engine, s, box, 25);
+    if (n % 2) p = p.moved_to({p.centre()[0] + 1e6, p.centre()[1], p.centre()[2]});
+    s.add_particle(p);
+  }
+  MovingScene scene(s, box);
+  const auto cells = scene.cells();
+  for (int k = 1; k < 3; ++k) EXPECT_GE(cells[std::size_t(k)], 10) << "axis " << k;
+  expect_same_as_screen(scene, "two clusters 1e6 apart");
+  // Pairs placed across the stretch's ends (the clusters reach x = 25 and
+  // start at 1e6) and in its middle, each checked against the brute force.
+  const double spots[] = {25.3, 26.5, 28, 31, 4e5, 5e5 + 0.25, 1e6 - 3, 1e6 - 1.2};
+  std::uint32_t moved = 0;
+  for (double x : spots)
+    for (double dx : {0.0, 0.45}) {
+      const std::array<double, 3> c = {x + dx, 12 + dx, 12};
+      scene.move(moved, scene.particles().particle_at(moved).moved_to(c));
+      ++moved;
+    }
+  for (double x : spots)
+    for (double dx : {-0.3, 0.2, 0.6}) {
+      const Particle t = scene.trial_axes({x + dx, 12.1, 12}, {0.5, 0.2, 0.2}, {1, 0, 0, 0});
+      expect_query_matches(scene, t, MovingScene::none, "trial at x = " + std::to_string(x + dx));
+    }
+  expect_same_as_screen(scene, "particles moved into the folded stretch");
+}
+
 TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   std::mt19937_64 engine(13);
   const Box box = Box::periodic_box(6, 6, 6);

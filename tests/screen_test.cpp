@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "pwcontact/pwcontact.hpp"
+#include "screen/cell_lists.hpp"
 #include "screen/radix_sort.hpp"
 #include "test_support.hpp"
 
@@ -577,6 +578,109 @@ TEST(Screen, AFewFarParticlesInAnOpenBoxLeaveTheCellsOfTheRestFine) {
       << " without the far particles";
   const Comparison c = compare(s, Box::open(), 1, got, "far particles, open");
   EXPECT_EQ(c.found, near.size() + 1) << "the far pair is found, the near pairs stay";
+}
+
+TEST(Screen, ClustersFarApartInAnOpenBoxAreScreenedAsFinelyAsEachAlone) {
+  // The cells were sized over the whole span of the centres: two clusters
+  // of 50,000 spheroids 1e6 apart compared 100 times the pairs of the two
+  // side by side. The long empty stretches of an open axis are now folded
+  // out of cell space (cell_lists.hpp, OpenFold). Four clusters: 1e6 apart
+  // along x, one off along every axis, one beyond 1e15.
+  const std::array<std::array<double, 3>, 4> offsets = {
+      {{0, 0, 0}, {1e6, 0, 0}, {1.7e6, 3e5, -2e5}, {-3.5e15, 2e4, 1e9}}};
+  ParticleStore all;
+  std::size_t compared_alone = 0;
+  for (std::size_t c = 0; c < offsets.size(); ++c) {
+    ParticleStore one = make_scene({600, 1.0 / 3, 3, 0.5, 0.5, 8.0, false, 90 + c});
+    // A pair of spheres at the cluster's face along x, 1e-6 inside contact,
+    // and one 1e-6 outside (the fold's stretch begins just beyond them).
+    // (Beyond 1e15 a coordinate's ulp is 0.5: there, one overlapping pair.)
+    const double face = 9, inside = c < 3 ? 1e-6 : 0.5;
+    one.add_axes({face, 4, 4}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+    one.add_axes({face + 1 - inside, 4, 4}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+    one.add_axes({face, 6, 6}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+    one.add_axes({face + 1 + 1e-6, 6, 6}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+    ScreenedPairs pairs;
+    compared_alone += screen(one, Box::open(), 1, pairs).candidate_pairs;
+    for (std::size_t i = 0; i < one.size(); ++i) {
+      const ParticleStore::Particle p = one.particle_at(i);
+      all.add_particle(p.moved_to({p.centre()[0] + offsets[c][0], p.centre()[1] + offsets[c][1],
+                                   p.centre()[2] + offsets[c][2]}));
+    }
+  }
+  for (double cutoff : {1.0, 1.5}) {
+    ScreenedPairs got;
+    const ScreenReport report = screen(all, Box::open(), cutoff, got);
+    // (Before the fold: every pair compared, 1.8M against 0.13M. Each axis
+    // is folded on its own: clusters off along every axis leave the empty
+    // blocks between them in cell space, and the cells grow by the cube
+    // root of that volume over the clusters', here 3 x 3 x 3 blocks for 4.)
+    if (cutoff == 1) {
+      EXPECT_LT(report.candidate_pairs, 3 * compared_alone)
+          << "compared " << report.candidate_pairs << " pairs, " << compared_alone
+          << " with each cluster alone";
+    }
+    const Comparison c = compare(all, Box::open(), cutoff, got, "clusters far apart, open");
+    EXPECT_GT(c.found, 1000u);
+  }
+}
+
+// The cell search misses no partner under a fold of cell space that is
+// non-decreasing and moves no two points apart, to within the roundings of
+// the cell-space coordinates (eps of themselves) that the coarse test's
+// slack allows for (cell_lists.hpp, OpenFold). Checked on the folds of
+// clusters at gaps from 7.5 to 1e12, about the origin of coordinates and
+// as far as 2^50 and 3e15 (where an ulp of a coordinate is 0.5), at points
+// a few ulps about every pivot and end of a folded stretch and anywhere.
+TEST(Screen, TheFoldOfEmptyStretchesIsNonDecreasingAndMovesNoTwoPointsApart) {
+  std::mt19937_64 engine(97);
+  std::uniform_real_distribution<double> unit(0, 1);
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  std::size_t folds = 0, checked = 0;
+  for (double base : {0.0, 1e6, -7e9, 0x1p50, 3e15}) {
+    ParticleStore s;
+    const double gaps[] = {50, 3e3, 7.5, 1e5, 1e9, 30, 1e12};
+    double at = base, end = base;  // (end: of the last cluster)
+    for (double gap : gaps) {
+      for (int i = 0; i < 60; ++i)
+        s.add_axes({at + 10 * unit(engine), 10 * unit(engine), 10 * unit(engine)}, {0.5, 0.5, 0.5},
+                   {1, 0, 0, 0});
+      end = at + 10;
+      at += 10 + gap;
+    }
+    const pwcontact::screen::CellLists lists =
+        pwcontact::screen::build_cell_lists(s, Box::open(), 1, 1);
+    const pwcontact::screen::OpenFold& fold = lists.fold[0];
+    ASSERT_GE(fold.pivot.size(), 3u) << "base " << base;
+    folds += fold.pivot.size();
+    EXPECT_TRUE(lists.fold[1].pivot.empty() && lists.fold[2].pivot.empty());
+    std::vector<double> x;
+    for (std::size_t j = 0; j < fold.pivot.size(); ++j)
+      for (double end : {fold.pivot[j], fold.pivot[j] + fold.removed[j]}) {
+        double v = end;
+        for (int k = 0; k < 4; ++k) v = std::nextafter(v, -INFINITY);
+        for (int k = 0; k < 9; ++k, v = std::nextafter(v, INFINITY)) x.push_back(v);
+        for (int k = 0; k < 20; ++k) x.push_back(end + 3 * (unit(engine) - 0.5));
+      }
+    const double low = *std::min_element(s.centre(0).begin(), s.centre(0).end());
+    for (int k = 0; k < 400; ++k) x.push_back(low + (end - base) * unit(engine) * unit(engine));
+    std::sort(x.begin(), x.end());
+    std::vector<double> u(x.size());
+    for (std::size_t k = 0; k < x.size(); ++k) u[k] = lists.open_coordinate(0, x[k]);
+    for (std::size_t a = 0; a + 1 < x.size(); ++a)
+      for (std::size_t b = a + 1; b < std::min(x.size(), a + 40); ++b) {
+        ++checked;
+        const double allowed = (x[b] - x[a]) + 4 * eps * (std::abs(u[a]) + std::abs(u[b]));
+        ASSERT_LE(u[a], u[b]) << "base " << base << ": u(" << x[a] << ") > u(" << x[b] << ")";
+        ASSERT_LE(u[b] - u[a], allowed)
+            << "base " << base << ": u(" << x[b] << ") - u(" << x[a] << ") = " << u[b] - u[a];
+      }
+    // The clusters' 7 x 10 of extent and what is kept of each stretch,
+    // 4 cutoff R_max = 2 (or all of it, 7.5): not the 1e12 between them.
+    EXPECT_LT(lists.open_coordinate(0, end), 100) << "base " << base;
+  }
+  EXPECT_GE(folds, 15u);
+  EXPECT_GT(checked, 50000u);
 }
 
 TEST(Screen, ErrorsInsideTheSearchReachTheCallerAsExceptions) {

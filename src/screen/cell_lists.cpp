@@ -146,6 +146,141 @@ void region_without_outliers(const ParticleStore& particles, const BoxGeometry& 
   }
 }
 
+void fold_base(OpenFold& fold, double base) {
+  const std::size_t stretches = fold.pivot.size();
+  fold.held.resize(stretches);
+  fold.offset.resize(stretches);
+  double offset = base, held = -std::numeric_limits<double>::infinity();
+  for (std::size_t j = 0; j < stretches; ++j) {
+    // The value u takes at the pivot from below, computed as
+    // open_coordinate computes it there: u neither steps up nor down at the
+    // pivot, whatever the roundings of the offsets (they only move where
+    // the held value gives way to x - offset_j, by eps of the offsets).
+    held = std::max(held, fold.pivot[j] - offset);
+    fold.held[j] = held;
+    offset += fold.removed[j];  // (removed > 0: the offsets do not decrease)
+    fold.offset[j] = offset;
+  }
+}
+
+namespace {
+
+// The stretches longer than `longer` between the values xs[0 .. count)
+// (all within [lo, hi], lo and hi among them), in increasing order, each
+// as (its start, its length): the values counted into bins (as many as
+// values, at least 16), the stretches between occupied bins taken, and
+// each bin whose values span more than `longer` searched the same way.
+// Each level narrows the span by the bins' count, so that gaps of every
+// scale are found (clusters 1e2, 1e5 and 1e12 apart), in O(values) per
+// level. `previous`: the highest value before these.
+void find_stretches(const double* xs, std::size_t count, double lo, double hi, double longer,
+                    double& previous, std::vector<std::pair<double, double>>& stretches) {
+  if (count == 0) return;
+  if (!(hi - lo > longer)) {
+    if (lo - previous > longer) stretches.push_back({previous, lo - previous});
+    previous = hi;
+    return;
+  }
+  constexpr std::size_t few = 64;
+  if (count <= few) {  // (sorted outright)
+    double sorted[few];
+    std::copy(xs, xs + count, sorted);
+    std::sort(sorted, sorted + count);
+    for (std::size_t i = 0; i < count; ++i) {
+      if (sorted[i] - previous > longer) stretches.push_back({previous, sorted[i] - previous});
+      previous = sorted[i];
+    }
+    return;
+  }
+  const std::size_t bins = std::min<std::size_t>(std::max<std::size_t>(count, 16), 1 << 22);
+  const double per_length = double(bins) / (hi - lo);
+  auto bin_of = [&](double x) { return std::min(bins - 1, std::size_t((x - lo) * per_length)); };
+  std::vector<std::size_t> start(bins + 1, 0);
+  for (std::size_t i = 0; i < count; ++i) ++start[bin_of(xs[i]) + 1];
+  for (std::size_t b = 0; b < bins; ++b) start[b + 1] += start[b];
+  std::vector<double> sorted(count);
+  {
+    std::vector<std::size_t> next(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < count; ++i) sorted[next[bin_of(xs[i])]++] = xs[i];
+  }
+  for (std::size_t b = 0; b < bins; ++b) {
+    const double* in = sorted.data() + start[b];
+    const std::size_t n = start[b + 1] - start[b];
+    if (n == 0) continue;
+    const auto [first, last] = std::minmax_element(in, in + n);
+    find_stretches(in, n, *first, *last, longer, previous, stretches);
+  }
+}
+
+}  // namespace
+
+bool fold_empty_stretches(const ParticleStore& particles, const BoxGeometry& geometry,
+                          const std::array<double, 3>& low, const std::array<double, 3>& high,
+                          double keep, CellLists& lists) {
+  const std::size_t n = particles.size();
+  bool folded = false;
+  std::vector<std::pair<double, double>> stretches;
+  std::vector<std::uint8_t> taken, occupied;
+  for (int k = 0; k < 3; ++k) {
+    OpenFold& fold = lists.fold[std::size_t(k)];
+    fold = OpenFold();
+    if (geometry.periodic[k] || n == 0) continue;
+    const double lo = low[k], hi = high[k], kept = keep;
+    if (!(hi - lo > 4 * kept)) continue;
+    // A stretch to fold (below) is at least 1/16 of the extent: where the
+    // longest run of empty bins of a histogram of the axis (as many bins as
+    // particles) is shorter than that, none is (a uniform sparse scene:
+    // one pass over the centres, no search).
+    {
+      const std::size_t bins = std::min<std::size_t>(n, std::size_t(1) << 24);
+      const double per_length = double(bins) / (hi - lo);
+      occupied.assign(bins, 0);
+      for (const double x : particles.centre(k))
+        occupied[std::min(bins - 1, std::size_t((x - lo) * per_length))] = 1;
+      std::size_t run = 0, longest_run = 0;
+      for (const std::uint8_t o : occupied) {
+        run = o ? 0 : run + 1;
+        longest_run = std::max(longest_run, run);
+      }
+      if (double(longest_run + 2) < double(bins) / 16) continue;
+    }
+    stretches.clear();
+    double previous = lo;
+    find_stretches(particles.centre(k).data(), n, lo, hi, 2 * kept, previous, stretches);
+    // Folded: the stretches that are at least 1/16 of the axis's extent as
+    // folded so far, the longest first (one each round; each shortens the
+    // extent by 1/17 at least, so there are at most a few hundred). A
+    // uniform sparse scene, whose longest stretch is far shorter than that,
+    // keeps its axis as it is.
+    taken.assign(stretches.size(), 0);
+    double extent = hi - lo;
+    for (bool more = true; more;) {
+      more = false;
+      std::size_t longest = 0;
+      double length = 0;
+      for (std::size_t j = 0; j < stretches.size(); ++j)
+        if (!taken[j] && stretches[j].second > length) {
+          length = stretches[j].second;
+          longest = j;
+        }
+      if (length > 0 && length >= extent / 16) {
+        taken[longest] = 1;
+        extent -= length - kept;
+        more = true;
+      }
+    }
+    for (std::size_t j = 0; j < stretches.size(); ++j)
+      if (taken[j]) {
+        fold.pivot.push_back(stretches[j].first + 0.5 * kept);
+        fold.removed.push_back(stretches[j].second - kept);
+      }
+    if (fold.pivot.empty()) continue;
+    fold_base(fold, lists.origin[std::size_t(k)]);
+    folded = true;
+  }
+  return folded;
+}
+
 std::size_t CellListMemory::bytes() const {
   std::size_t total = size_class.capacity() + cell.capacity() * sizeof(std::uint32_t);
   for (const std::vector<std::uint32_t>& counts : place)
@@ -265,26 +400,59 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     if (members[c] > members[most]) most = c;
     lists.grids.push_back(std::move(grid));
   }
-  // A few particles far from the rest along an open axis: the grids over
-  // the region without them, when that makes the cells of the class with
-  // the most members at most half as wide (the far ones in the outer cells).
+  // Where the cells had to grow: the grids over the open axes' region
+  // without its long empty stretches (folded: clusters far apart), and then
+  // without the farthest particles (the far ones in the outer cells) when
+  // that makes the cells of the class with the most members at most half as
+  // wide. The region's ends along an open axis: its centres' coordinates,
+  // or where folded their cell-space coordinates (from the origin).
+  std::array<double, 3> region_from = low, region_to = high;
+  auto size_all = [&](const std::array<double, 3>& from, const std::array<double, 3>& to) {
+    for (int c = 0; c < max_classes; ++c)
+      if (members[c] > 0)
+        grown[c] = size_cells(geometry, side[c], from, to, 0, cell_limit[c],
+                              lists.grids[std::size_t(compact[c])]);
+  };
+  if (worth_trimming(n, grown[most]) &&
+      fold_empty_stretches(particles, geometry, low, high, 4 * cutoff * largest, lists)) {
+    for (int k = 0; k < 3; ++k)
+      if (!lists.fold[std::size_t(k)].pivot.empty()) {
+        region_from[k] = 0;
+        region_to[k] = lists.open_coordinate(k, high[k]);
+      }
+    size_all(region_from, region_to);
+  }
   if (worth_trimming(n, grown[most])) {
     std::array<double, 3> from = low, to = high;
     region_without_outliers(particles, geometry, from, to);
+    for (int k = 0; k < 3; ++k)
+      if (!lists.fold[std::size_t(k)].pivot.empty()) {
+        from[k] = lists.open_coordinate(k, from[k]);
+        to[k] = lists.open_coordinate(k, to[k]);
+      }
     ClassGrid trimmed;
     if (trimmed_is_finer(grown[most], size_cells(geometry, side[most], from, to, 0,
                                                  cell_limit[most], trimmed))) {
-      for (int c = 0; c < max_classes; ++c)
-        if (members[c] > 0)
-          size_cells(geometry, side[c], from, to, 0, cell_limit[c],
-                     lists.grids[std::size_t(compact[c])]);
-      lists.origin = from;
-      high = to;
+      size_all(from, to);
+      for (int k = 0; k < 3; ++k) {
+        OpenFold& fold = lists.fold[std::size_t(k)];
+        if (fold.pivot.empty()) {
+          lists.origin[std::size_t(k)] = from[k];
+        } else {
+          lists.origin[std::size_t(k)] += from[k];
+          fold_base(fold, lists.origin[std::size_t(k)]);
+        }
+      }
+      region_from = from;
+      region_to = to;
     }
   }
   std::array<double, 3> width{};  // of the grids' region along the open axes
   for (int k = 0; k < 3; ++k)
-    if (!geometry.periodic[k]) width[std::size_t(k)] = high[k] - lists.origin[k];
+    if (!geometry.periodic[k])
+      width[std::size_t(k)] = lists.fold[std::size_t(k)].pivot.empty()
+                                  ? region_to[k] - lists.origin[std::size_t(k)]
+                                  : region_to[k] - region_from[k];
   lists.slack = coarse_slack(geometry, 2 * cutoff * largest, width);
 
   // Counting sort of each class's members by cell, in particle order.

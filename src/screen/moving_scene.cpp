@@ -281,10 +281,41 @@ struct MovingScene::Impl {
     const std::array<double, 3> sides = {side, side, side};
     screen::ClassGrid g;
     g.largest_reach = cutoff * radius;
-    const double grown = screen::size_cells(geometry, sides, low, high, side, limit, g);
-    if (screen::worth_trimming(n, grown)) {
+    double grown = screen::size_cells(geometry, sides, low, high, side, limit, g);
+    // Where they had to grow, first over the region without its long empty
+    // stretches along the open axes (screen::fold_empty_stretches: clusters
+    // far apart), in cell-space coordinates from `low` along a folded axis.
+    const std::array<double, 3> fold_origin = low, raw_high = high;
+    lists.origin = low;
+    if (screen::worth_trimming(n, grown) &&
+        screen::fold_empty_stretches(store, geometry, low, high, 4 * cutoff * radius, lists)) {
       std::array<double, 3> from = low, to = high;
+      for (int k = 0; k < 3; ++k)
+        if (!lists.fold[std::size_t(k)].pivot.empty()) {
+          from[k] = 0;
+          to[k] = lists.open_coordinate(k, high[k]);
+        }
+      const double slack = slack_over(from, to);
+      const double folded_side = 2 * cutoff * radius + 4 * slack;
+      g = screen::ClassGrid();
+      g.largest_reach = cutoff * radius;
+      grown = screen::size_cells(geometry, {folded_side, folded_side, folded_side}, from, to,
+                                 folded_side, limit, g);
+      low = from;
+      high = to;
+      lists.slack = slack;
+      side = folded_side;
+    }
+    if (screen::worth_trimming(n, grown)) {
+      // (The quantiles of the centres, then where folded their cell-space
+      // coordinates: the fold is non-decreasing.)
+      std::array<double, 3> from = fold_origin, to = raw_high;
       screen::region_without_outliers(store, geometry, from, to);
+      for (int k = 0; k < 3; ++k)
+        if (!lists.fold[std::size_t(k)].pivot.empty()) {
+          from[k] = lists.open_coordinate(k, from[k]);
+          to[k] = lists.open_coordinate(k, to[k]);
+        }
       screen::ClassGrid trimmed;
       trimmed.largest_reach = g.largest_reach;
       const double slack = slack_over(from, to);
@@ -299,7 +330,15 @@ struct MovingScene::Impl {
         side = trimmed_side;
       }
     }
-    for (int k = 0; k < 3; ++k) lists.origin[k] = geometry.periodic[k] ? 0 : low[k] - side;
+    for (int k = 0; k < 3; ++k) {
+      screen::OpenFold& fold = lists.fold[std::size_t(k)];
+      if (fold.pivot.empty()) {
+        lists.origin[k] = geometry.periodic[k] ? 0 : low[k] - side;
+      } else {
+        lists.origin[k] = fold_origin[k] + (low[k] - side);
+        screen::fold_base(fold, lists.origin[k]);
+      }
+    }
     side = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 3; ++k) side = std::min(side, 1 / g.inverse_side[k]);
     lists.grids.assign(1, std::move(g));
