@@ -593,6 +593,32 @@ TEST(MovingScene, ClustersFarApartInAnOpenBoxKeepFineCellsAndLoseNoPairAcrossThe
   expect_same_as_screen(scene, "particles moved into the folded stretch");
 }
 
+TEST(MovingScene, ParticlesParkedFarAwayAndBroughtBackLeaveTheCellsFine) {
+  // 40 % of the particles moved one by one to x = 1e9 and back: the rebuilds
+  // they caused sized the cells over the whole span (39,718 x 1 x 1 for
+  // 20,000 particles, queries 9 times slower, and so they stayed after the
+  // particles came back). The rebuilds now fold the empty stretch.
+  std::mt19937_64 engine(31);
+  std::uniform_real_distribution<double> unit(0, 1);
+  ParticleStore s;
+  s.add_type({0.5, 0.2, 0.2});
+  const Box box = Box::open();
+  for (int n = 0; n < 5000; ++n) s.add_particle(random_particle(engine, s, box, 22));
+  MovingScene scene(s, box);
+  for (bool parked : {true, false}) {
+    for (std::uint32_t i = 0; i < 2000; ++i) {
+      const std::array<double, 3> c = {(parked ? 1e9 : 0) + 22 * unit(engine), 22 * unit(engine),
+                                       22 * unit(engine)};
+      scene.move(i, scene.particles().particle_at(i).moved_to(c));
+    }
+    const auto cells = scene.cells();
+    for (int k = 1; k < 3; ++k)
+      EXPECT_GE(cells[std::size_t(k)], 10) << (parked ? "parked" : "back") << ", axis " << k;
+    EXPECT_GE(scene.counters().rebuilds, 2u);
+    expect_same_as_screen(scene, parked ? "2,000 parked at 1e9" : "brought back");
+  }
+}
+
 TEST(MovingScene, BadInputIsRefusedNamingItWithTheSceneUnchanged) {
   std::mt19937_64 engine(13);
   const Box box = Box::periodic_box(6, 6, 6);
