@@ -221,6 +221,7 @@ bool fold_empty_stretches(const ParticleStore& particles, const BoxGeometry& geo
   bool folded = false;
   std::vector<std::pair<double, double>> stretches;
   std::vector<std::uint8_t> taken, occupied;
+  std::vector<std::size_t> order;
   for (int k = 0; k < 3; ++k) {
     OpenFold& fold = lists.fold[std::size_t(k)];
     fold = OpenFold();
@@ -248,26 +249,21 @@ bool fold_empty_stretches(const ParticleStore& particles, const BoxGeometry& geo
     double previous = lo;
     find_stretches(particles.centre(k).data(), n, lo, hi, 2 * kept, previous, stretches);
     // Folded: the stretches that are at least 1/16 of the axis's extent as
-    // folded so far, the longest first (one each round; each shortens the
-    // extent by 1/17 at least, so there are at most a few hundred). A
-    // uniform sparse scene, whose longest stretch is far shorter than that,
-    // keeps its axis as it is.
+    // folded so far, the longest first (each shortens the extent by 1/17 at
+    // least, so there are at most a few hundred). A uniform sparse scene,
+    // whose longest stretch is far shorter than that, keeps its axis as it
+    // is.
+    order.resize(stretches.size());
+    for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return stretches[a].second > stretches[b].second;
+    });
     taken.assign(stretches.size(), 0);
     double extent = hi - lo;
-    for (bool more = true; more;) {
-      more = false;
-      std::size_t longest = 0;
-      double length = 0;
-      for (std::size_t j = 0; j < stretches.size(); ++j)
-        if (!taken[j] && stretches[j].second > length) {
-          length = stretches[j].second;
-          longest = j;
-        }
-      if (length > 0 && length >= extent / 16) {
-        taken[longest] = 1;
-        extent -= length - kept;
-        more = true;
-      }
+    for (const std::size_t j : order) {
+      if (!(stretches[j].second >= extent / 16)) break;
+      taken[j] = 1;
+      extent -= stretches[j].second - kept;
     }
     for (std::size_t j = 0; j < stretches.size(); ++j)
       if (taken[j]) {
