@@ -376,6 +376,35 @@ int main(int argc, char** argv) {
         if (!balanced || !thin) ++failures;
       }
     }
+    // Clusters far apart in open boundaries: the slabs split the folded
+    // axis (four clusters at x = 0, 1e4, 2e4 and 1e6 left the middle rank
+    // of three without particles, and three quarters to one rank of two),
+    // and the pairs stay the single screen's.
+    for (const Start start : {Start::round_robin, Start::last_rank}) {
+      const Scene cube = random_scene("", Box::open(), 2800, {14, 14, 14}, 1.0, 1, 27);
+      Scene scene = cube;
+      scene.name = start == Start::round_robin ? "clusters far apart, open"
+                                               : "clusters far apart, open, all on the last rank";
+      const auto add = cube.add;
+      scene.add = [add](ParticleStore& s, std::size_t k) {
+        add(s, k);
+        const double offset[4] = {0, 1e4, 2e4, 1e6};
+        const auto p = s.particle_at(s.size() - 1);
+        s.set_particle(s.size() - 1,
+                       p.moved_to({p.centre()[0] + offset[k % 4], p.centre()[1], p.centre()[2]}));
+      };
+      const pwcontact::mpi::DistributedReport report = check(scene, 1.0, true, start);
+      // Every rank owns at least 0.6 of an even share.
+      unsigned long long owned = report.owned, fewest = 0;
+      MPI_Allreduce(&owned, &fewest, 1, MPI_UNSIGNED_LONG_LONG, MPI_MIN, MPI_COMM_WORLD);
+      const bool balanced = double(fewest) >= 0.6 * double(scene.size) / double(ranks);
+      if (rank == 0) {
+        std::printf("%-40s %d ranks: %s %llu of %zu particles\n", "clusters far apart, slabs",
+                    ranks, balanced ? "the fewest a rank owns is" : "WRONG: a rank owns only",
+                    fewest, scene.size);
+        if (!balanced) ++failures;
+      }
+    }
     // Ghost layers per size: one large particle added to a scene of small
     // ones changes what every rank receives by at most itself, the rank that
     // owns it included (small particles go as far as twice their own reach,

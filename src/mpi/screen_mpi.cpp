@@ -155,6 +155,16 @@ struct Decomposition {
   std::array<int, 3> dims = {1, 1, 1}, coords = {0, 0, 0};
   std::array<double, 3> low = {0, 0, 0}, extent = {0, 0, 0};  // open axes
   std::array<double, 3> width = {0, 0, 0};                    // cell-space width along each axis
+  // Open axes folded (fold_open_slabs): low and extent are then in the
+  // fold's coordinate u, made with origin fold_origin.
+  std::array<screen::OpenFold, 3> fold;
+  std::array<double, 3> fold_origin = {0, 0, 0};
+
+  // The coordinate along open axis k that low and extent are in.
+  double open_coordinate(int k, double x) const {
+    const auto K = std::size_t(k);
+    return fold[K].pivot.empty() ? x : screen::folded_coordinate(fold[K], fold_origin[K], x);
+  }
 
   std::array<double, 3> unit(const double x[3]) const {
     std::array<double, 3> t{};
@@ -164,8 +174,8 @@ struct Decomposition {
       if (geometry.periodic[k])
         t[std::size_t(k)] = s[k];
       else if (extent[std::size_t(k)] > 0)
-        t[std::size_t(k)] =
-            std::clamp((x[k] - low[std::size_t(k)]) / extent[std::size_t(k)], 0.0, 1.0);
+        t[std::size_t(k)] = std::clamp(
+            (open_coordinate(k, x[k]) - low[std::size_t(k)]) / extent[std::size_t(k)], 0.0, 1.0);
     return t;
   }
   int slab(int k, double t) const {
@@ -174,6 +184,86 @@ struct Decomposition {
     return c >= double(d - 1) ? d - 1 : (c > 0 ? int(c) : 0);
   }
 };
+
+std::vector<int> displacements(const std::vector<int>& counts, std::size_t& total);
+
+// Whether cells of the largest reach over the centres' extent would be
+// more than twice the particles of all ranks (as where the cell lists
+// grow): then the slabs are split over less than the whole extent.
+bool slabs_too_wide(MPI_Comm comm, const ParticleStore& particles,
+                    const screen::BoxGeometry& geometry, double largest_reach,
+                    const std::array<double, 3>& extent) {
+  unsigned long long mine = particles.size(), total = 0;
+  MPI_Allreduce(&mine, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+  double cells = 1;
+  for (int k = 0; k < 3; ++k)
+    cells *= geometry.periodic[k]
+                 ? std::max(1.0, std::floor(geometry.width[std::size_t(k)] / largest_reach))
+                 : extent[std::size_t(k)] / largest_reach + 1;
+  return cells > 2.0 * double(total) && largest_reach > 0;
+}
+
+// Clusters far apart along an open axis: the slabs split the whole extent,
+// so that two clusters 1e6 apart on four ranks left the two middle ranks
+// without particles. Where the slabs are too wide, each open axis is folded
+// as the cell lists fold it (screen::fold_empty_stretches), with the same
+// fold on every rank: each rank's centres occupy their span less the
+// stretches its own fold would take; the stretches between the union of
+// every rank's occupied intervals (empty on every rank: a rank's shorter
+// stretches only fold less) are chosen as the cell lists choose them, over
+// the whole extent. The slabs then split the folded coordinate, and the
+// ghost test stays exact: the fold is non-decreasing and moves no two
+// points apart (beyond a rounding of the coordinate, which the ghosts'
+// slack takes), so a partner within a reach of a subdomain is within it in
+// folded coordinates too.
+void fold_open_slabs(MPI_Comm comm, const ParticleStore& particles, double largest_reach,
+                     Decomposition& grid) {
+  const std::size_t n = particles.size();
+  const double kept = 2 * largest_reach;  // (the cell lists' 4 cutoff R_max)
+  for (int k = 0; k < 3; ++k) {
+    const auto K = std::size_t(k);
+    if (grid.geometry.periodic[k] || !(grid.extent[K] > 4 * kept)) continue;
+    // This rank's occupied intervals, (from, to) in order.
+    std::vector<double> occupied;
+    if (n > 0) {
+      const std::vector<double>& x = particles.centre(k);
+      const auto [lo, hi] = std::minmax_element(x.begin(), x.end());
+      double from = *lo;
+      for (const auto& [start, length] : screen::stretches_to_fold(x.data(), n, *lo, *hi, kept)) {
+        occupied.insert(occupied.end(), {from, start});
+        from = start + length;
+      }
+      occupied.insert(occupied.end(), {from, *hi});
+    }
+    int size = 0, mine = int(occupied.size());
+    MPI_Comm_size(comm, &size);
+    std::vector<int> counts(std::size_t(size), 0), displs(std::size_t(size), 0);
+    MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+    std::size_t total = 0;
+    displs = displacements(counts, total);
+    std::vector<double> all(total);
+    MPI_Allgatherv(occupied.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(),
+                   MPI_DOUBLE, comm);
+    // Their union, and the stretches between.
+    std::vector<std::pair<double, double>> intervals;
+    for (std::size_t j = 0; j + 1 < all.size(); j += 2) intervals.push_back({all[j], all[j + 1]});
+    std::sort(intervals.begin(), intervals.end());
+    std::vector<std::pair<double, double>> stretches;
+    double reached = -std::numeric_limits<double>::infinity();
+    for (const auto& [from, to] : intervals) {
+      if (from - reached > 2 * kept && std::isfinite(reached))
+        stretches.push_back({reached, from - reached});
+      reached = std::max(reached, to);
+    }
+    screen::choose_stretches(stretches, grid.extent[K], kept);
+    if (stretches.empty()) continue;
+    grid.fold_origin[K] = grid.low[K];
+    screen::set_fold(grid.fold[K], stretches, kept, grid.low[K]);
+    grid.extent[K] =
+        screen::folded_coordinate(grid.fold[K], grid.low[K], grid.low[K] + grid.extent[K]);
+    grid.low[K] = 0;
+  }
+}
 
 // A few particles far from the rest along an open axis: the slabs split
 // the centres' whole extent, so one particle at x = 1e9 beside 200,000 in a
@@ -187,19 +277,12 @@ struct Decomposition {
 // (Decomposition::unit clamps), and the ghost test stays exact: clamping
 // is monotone and shrinks distances, so a partner within a reach of a
 // subdomain is within it in unit coordinates too.
-void trim_open_slabs(MPI_Comm comm, const ParticleStore& particles,
-                     const screen::BoxGeometry& geometry, double largest_reach,
-                     std::array<double, 3>& low, std::array<double, 3>& extent) {
+void trim_open_slabs(MPI_Comm comm, const ParticleStore& particles, Decomposition& grid) {
   const std::size_t n = particles.size();
-  unsigned long long mine = n, total = 0;
-  MPI_Allreduce(&mine, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
-  double cells = 1;
-  for (int k = 0; k < 3; ++k)
-    cells *= geometry.periodic[k]
-                 ? std::max(1.0, std::floor(geometry.width[std::size_t(k)] / largest_reach))
-                 : extent[std::size_t(k)] / largest_reach + 1;
-  if (!(cells > 2.0 * double(total)) || !(largest_reach > 0)) return;
-  // Per open axis: -(the lowest 1/64 quantile), the highest 63/64 quantile.
+  const screen::BoxGeometry& geometry = grid.geometry;
+  // Per open axis: -(the lowest 1/64 quantile), the highest 63/64 quantile
+  // (in the folded coordinate where the axis is folded: it is
+  // non-decreasing).
   double quantiles[6], bounds[6];
   for (double& q : quantiles) q = -std::numeric_limits<double>::infinity();
   if (n >= 256) {  // (the cell lists' region of this rank's centres)
@@ -208,17 +291,17 @@ void trim_open_slabs(MPI_Comm comm, const ParticleStore& particles,
     to.fill(-std::numeric_limits<double>::infinity());
     screen::region_without_outliers(particles, geometry, from, to);
     for (int k = 0; k < 3; ++k) {
-      quantiles[k] = -from[std::size_t(k)];
-      quantiles[3 + k] = to[std::size_t(k)];
+      quantiles[k] = -grid.open_coordinate(k, from[std::size_t(k)]);
+      quantiles[3 + k] = grid.open_coordinate(k, to[std::size_t(k)]);
     }
   }
   MPI_Allreduce(quantiles, bounds, 6, MPI_DOUBLE, MPI_MAX, comm);
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);
     const double from = -bounds[k], to = bounds[3 + k];
-    if (geometry.periodic[k] || !(to >= from) || !(to - from <= 0.5 * extent[K])) continue;
-    low[K] = from;
-    extent[K] = to - from;
+    if (geometry.periodic[k] || !(to >= from) || !(to - from <= 0.5 * grid.extent[K])) continue;
+    grid.low[K] = from;
+    grid.extent[K] = to - from;
   }
 }
 
@@ -443,7 +526,11 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
       grid.extent[K] = global_max[1 + k] - grid.low[K];
     }
   }
-  trim_open_slabs(comm, particles, geometry, largest_reach, grid.low, grid.extent);
+  if (slabs_too_wide(comm, particles, geometry, largest_reach, grid.extent)) {
+    fold_open_slabs(comm, particles, largest_reach, grid);
+    if (slabs_too_wide(comm, particles, geometry, largest_reach, grid.extent))
+      trim_open_slabs(comm, particles, grid);
+  }
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);
     grid.width[K] = geometry.periodic[k] ? geometry.width[K] : grid.extent[K];

@@ -214,65 +214,74 @@ void find_stretches(const double* xs, std::size_t count, double lo, double hi, d
 
 }  // namespace
 
+void choose_stretches(std::vector<std::pair<double, double>>& stretches, double extent,
+                      double kept) {
+  std::vector<std::size_t> order(stretches.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return stretches[a].second > stretches[b].second;
+  });
+  std::vector<std::uint8_t> taken(stretches.size(), 0);
+  for (const std::size_t j : order) {
+    if (!(stretches[j].second > 2 * kept && stretches[j].second >= extent / 16)) break;
+    taken[j] = 1;
+    extent -= stretches[j].second - kept;
+  }
+  std::size_t kept_ones = 0;
+  for (std::size_t j = 0; j < stretches.size(); ++j)
+    if (taken[j]) stretches[kept_ones++] = stretches[j];
+  stretches.resize(kept_ones);
+}
+
+std::vector<std::pair<double, double>> stretches_to_fold(const double* x, std::size_t n, double lo,
+                                                         double hi, double kept) {
+  std::vector<std::pair<double, double>> stretches;
+  if (n == 0 || !(hi - lo > 4 * kept)) return stretches;
+  // A stretch to fold is at least 1/16 of the extent: where the longest run
+  // of empty bins of a histogram of the axis (as many bins as values) is
+  // shorter than that, none is (a uniform sparse scene: one pass over the
+  // centres, no search).
+  {
+    const std::size_t bins = std::min<std::size_t>(n, std::size_t(1) << 24);
+    const double per_length = double(bins) / (hi - lo);
+    std::vector<std::uint8_t> occupied(bins, 0);
+    for (std::size_t i = 0; i < n; ++i)
+      occupied[std::min(bins - 1, std::size_t((x[i] - lo) * per_length))] = 1;
+    std::size_t run = 0, longest_run = 0;
+    for (const std::uint8_t o : occupied) {
+      run = o ? 0 : run + 1;
+      longest_run = std::max(longest_run, run);
+    }
+    if (double(longest_run + 2) < double(bins) / 16) return stretches;
+  }
+  double previous = lo;
+  find_stretches(x, n, lo, hi, 2 * kept, previous, stretches);
+  choose_stretches(stretches, hi - lo, kept);
+  return stretches;
+}
+
+void set_fold(OpenFold& fold, const std::vector<std::pair<double, double>>& stretches, double kept,
+              double base) {
+  fold = OpenFold();
+  for (const auto& [start, length] : stretches) {
+    fold.pivot.push_back(start + 0.5 * kept);
+    fold.removed.push_back(length - kept);
+  }
+  fold_base(fold, base);
+}
+
 bool fold_empty_stretches(const ParticleStore& particles, const BoxGeometry& geometry,
                           const std::array<double, 3>& low, const std::array<double, 3>& high,
                           double keep, CellLists& lists) {
-  const std::size_t n = particles.size();
   bool folded = false;
-  std::vector<std::pair<double, double>> stretches;
-  std::vector<std::uint8_t> taken, occupied;
-  std::vector<std::size_t> order;
   for (int k = 0; k < 3; ++k) {
     OpenFold& fold = lists.fold[std::size_t(k)];
     fold = OpenFold();
-    if (geometry.periodic[k] || n == 0) continue;
-    const double lo = low[k], hi = high[k], kept = keep;
-    if (!(hi - lo > 4 * kept)) continue;
-    // A stretch to fold (below) is at least 1/16 of the extent: where the
-    // longest run of empty bins of a histogram of the axis (as many bins as
-    // particles) is shorter than that, none is (a uniform sparse scene:
-    // one pass over the centres, no search).
-    {
-      const std::size_t bins = std::min<std::size_t>(n, std::size_t(1) << 24);
-      const double per_length = double(bins) / (hi - lo);
-      occupied.assign(bins, 0);
-      for (const double x : particles.centre(k))
-        occupied[std::min(bins - 1, std::size_t((x - lo) * per_length))] = 1;
-      std::size_t run = 0, longest_run = 0;
-      for (const std::uint8_t o : occupied) {
-        run = o ? 0 : run + 1;
-        longest_run = std::max(longest_run, run);
-      }
-      if (double(longest_run + 2) < double(bins) / 16) continue;
-    }
-    stretches.clear();
-    double previous = lo;
-    find_stretches(particles.centre(k).data(), n, lo, hi, 2 * kept, previous, stretches);
-    // Folded: the stretches that are at least 1/16 of the axis's extent as
-    // folded so far, the longest first (each shortens the extent by 1/17 at
-    // least, so there are at most a few hundred). A uniform sparse scene,
-    // whose longest stretch is far shorter than that, keeps its axis as it
-    // is.
-    order.resize(stretches.size());
-    for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return stretches[a].second > stretches[b].second;
-    });
-    taken.assign(stretches.size(), 0);
-    double extent = hi - lo;
-    for (const std::size_t j : order) {
-      if (!(stretches[j].second >= extent / 16)) break;
-      taken[j] = 1;
-      extent -= stretches[j].second - kept;
-    }
-    for (std::size_t j = 0; j < stretches.size(); ++j)
-      if (taken[j]) {
-        fold.pivot.push_back(stretches[j].first + 0.5 * kept);
-        fold.removed.push_back(stretches[j].second - kept);
-      }
-    if (fold.pivot.empty()) continue;
-    fold_base(fold, lists.origin[std::size_t(k)]);
-    folded = true;
+    if (geometry.periodic[k]) continue;
+    const std::vector<double>& x = particles.centre(k);
+    set_fold(fold, stretches_to_fold(x.data(), x.size(), low[k], high[k], keep), keep,
+             lists.origin[std::size_t(k)]);
+    folded = folded || !fold.pivot.empty();
   }
   return folded;
 }

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <functional>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <omp.h>
@@ -232,6 +233,14 @@ struct OpenFold {
   std::vector<double> held, offset;    // from them and the origin (fold_base)
 };
 
+// u(x) of a fold made with origin `origin` (x - origin without one).
+inline double folded_coordinate(const OpenFold& f, double origin, double x) {
+  if (f.pivot.empty()) return x - origin;
+  const std::size_t j =
+      std::size_t(std::upper_bound(f.pivot.begin(), f.pivot.end(), x) - f.pivot.begin());
+  return j == 0 ? x - origin : std::max(f.held[j - 1], x - f.offset[j - 1]);
+}
+
 struct CellLists {
   Box box;
   BoxGeometry geometry;
@@ -251,11 +260,7 @@ struct CellLists {
 
   // The cell-space coordinate of x along open axis k (OpenFold).
   double open_coordinate(int k, double x) const {
-    const OpenFold& f = fold[std::size_t(k)];
-    if (f.pivot.empty()) return x - origin[std::size_t(k)];
-    const std::size_t j =
-        std::size_t(std::upper_bound(f.pivot.begin(), f.pivot.end(), x) - f.pivot.begin());
-    return j == 0 ? x - origin[std::size_t(k)] : std::max(f.held[j - 1], x - f.offset[j - 1]);
+    return folded_coordinate(fold[std::size_t(k)], origin[std::size_t(k)], x);
   }
   // The cell-space coordinates of a wrapped centre (see BoxGeometry).
   void cell_space(const double w[3], double u[3]) const {
@@ -346,6 +351,18 @@ bool fold_empty_stretches(const ParticleStore& particles, const BoxGeometry& geo
 // The fold's held values and offsets from its stretches, with origin
 // `base` (u(x) = x - base below the first stretch).
 void fold_base(OpenFold& fold, double base);
+// The pieces of fold_empty_stretches, for a fold of the centres of many
+// ranks (src/mpi): the stretches of one axis to fold, (start, length) in
+// order along it, of the values x[0 .. n) within [lo, hi]; of stretches
+// between centres (start, length), in order, those to fold over an axis of
+// that extent (longer than 2 kept, each at least 1/16 of the extent as
+// folded so far, the longest first); and the fold of chosen stretches.
+std::vector<std::pair<double, double>> stretches_to_fold(const double* x, std::size_t n, double lo,
+                                                         double hi, double kept);
+void choose_stretches(std::vector<std::pair<double, double>>& stretches, double extent,
+                      double kept);
+void set_fold(OpenFold& fold, const std::vector<std::pair<double, double>>& stretches, double kept,
+              double base);
 
 // Whether a grid whose cells grew by `grown` over the whole region is worth
 // the trimmed region's: asked where the cells grew by more than half and
