@@ -625,6 +625,46 @@ TEST(Screen, ClustersFarApartInAnOpenBoxAreScreenedAsFinelyAsEachAlone) {
   }
 }
 
+TEST(Screen, OutliersSpreadFarAwayAreLeftToTheOuterCellsWhenTheFoldWouldBeCoarser) {
+  // 200 particles spread over three widths of a cube of 20,000, 1e6 away:
+  // their own gaps are too short to fold, and the folded grid spent its
+  // cells on them (1.6 times the pairs compared); the trim alone leaves them
+  // to the outer cells, and is taken where its cells are finer.
+  const SceneSpec spec{20000, 1.0 / 3, 3, 0.3, 0.3, 36.0, false, 95};
+  ParticleStore s = make_scene(spec);
+  ScreenedPairs near;
+  const std::size_t compared_without = screen(s, Box::open(), 1, near).candidate_pairs;
+  std::mt19937_64 engine(96);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int i = 0; i < 200; ++i)
+    s.add_axes({1e6 + 3 * 36 * unit(engine), 36 * unit(engine), 36 * unit(engine)}, {0.3, 0.3, 0.3},
+               {1, 0, 0, 0});
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, Box::open(), 1, got);
+  EXPECT_LT(report.candidate_pairs, 1.2 * double(compared_without))
+      << "compared " << report.candidate_pairs << ", " << compared_without << " without them";
+  EXPECT_GE(got.size(), near.size());
+}
+
+TEST(Screen, ALineLongerThanAMillionCellsComparesEachParticleWithItsNeighbours) {
+  // An axis holds at most 1e6 cells: beyond, the cells kept their side and
+  // the far part of the region fell into the last cell (550,000 spheres
+  // spaced 4 along x compared 1.25e9 pairs). The cells are now wider along
+  // that axis, over the whole region. Two overlapping spheres at the far
+  // end are found.
+  ParticleStore s;
+  const std::size_t n = 600000;
+  for (std::size_t i = 0; i < n; ++i)
+    s.add_axes({4.0 * double(i), 0, 0}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+  s.add_axes({4.0 * double(n - 1) + 0.9, 0.1, 0}, {0.5, 0.5, 0.5}, {1, 0, 0, 0});
+  ScreenedPairs got;
+  const ScreenReport report = screen(s, Box::open(), 1, got);
+  EXPECT_LT(report.candidate_pairs, 4 * n) << "compared " << report.candidate_pairs;
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got.i[0], n - 1);
+  EXPECT_EQ(got.j[0], n);
+}
+
 // The cell search misses no partner under a fold of cell space that is
 // non-decreasing and moves no two points apart, to within the roundings of
 // the cell-space coordinates (eps of themselves) that the coarse test's

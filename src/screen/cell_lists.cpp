@@ -110,20 +110,32 @@ double coarse_slack(const BoxGeometry& geometry, double reach,
 double size_cells(const BoxGeometry& geometry, const std::array<double, 3>& side,
                   const std::array<double, 3>& from, const std::array<double, 3>& to, double margin,
                   double limit, ClassGrid& grid) {
+  constexpr double most_cells = 1e6;  // along one axis
   for (double wider = 1;;) {
-    double total = 1;
+    double total = 1, grown = wider;
     for (int k = 0; k < 3; ++k) {
-      const double wide = wider * side[k];
+      double wide = wider * side[k];
       const bool periodic = geometry.periodic[k];
       const double extent = periodic ? geometry.width[k] : to[k] - from[k] + 2 * margin;
       double cells =
           periodic ? std::max(1.0, std::floor(extent / wide)) : std::floor(extent / wide) + 1;
-      if (!(cells <= 1e6)) cells = 1e6;  // (NaN too: a side grown to infinity)
+      if (!(cells <= most_cells)) {
+        // (NaN too: a side grown to infinity.) Wider cells along this axis
+        // only, still over the whole region, and counted as grown: with
+        // cells of the asked side the region's far part fell into the last
+        // cell (550,000 spheres on a line compared 1.25e9 pairs), and no
+        // fold or trim was tried.
+        cells = most_cells;
+        if (!periodic && std::isfinite(extent)) {
+          wide = std::max(wide, extent / (most_cells - 1));
+          grown = std::max(grown, wide / side[k]);
+        }
+      }
       grid.cells[k] = int(cells);
       grid.inverse_side[k] = periodic ? grid.cells[k] / extent : 1 / wide;
       total *= grid.cells[k];
     }
-    if (total <= limit) return wider;
+    if (total <= limit) return grown;
     wider *= std::cbrt(total / limit) * 1.01;
   }
 }
@@ -420,12 +432,30 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
   };
   if (worth_trimming(n, grown[most]) &&
       fold_empty_stretches(particles, geometry, low, high, 4 * cutoff * largest, lists)) {
+    std::array<double, 3> from = low, to = high;
     for (int k = 0; k < 3; ++k)
       if (!lists.fold[std::size_t(k)].pivot.empty()) {
-        region_from[k] = 0;
-        region_to[k] = lists.open_coordinate(k, high[k]);
+        from[k] = 0;
+        to[k] = lists.open_coordinate(k, high[k]);
       }
-    size_all(region_from, region_to);
+    // Kept only where its cells are finer than the trim's alone would make
+    // them (a few outliers spread over a few widths of the rest far away:
+    // their own gaps too short to fold, the folded grid spent its cells on
+    // them, where the trim leaves them to the outer cells).
+    ClassGrid trial;
+    const double folded = size_cells(geometry, side[most], from, to, 0, cell_limit[most], trial);
+    std::array<double, 3> trim_from = low, trim_to = high;
+    region_without_outliers(particles, geometry, trim_from, trim_to);
+    const double trimmed =
+        size_cells(geometry, side[most], trim_from, trim_to, 0, cell_limit[most], trial);
+    const double unfolded = trimmed_is_finer(grown[most], trimmed) ? trimmed : grown[most];
+    if (folded < unfolded) {
+      size_all(from, to);
+      region_from = from;
+      region_to = to;
+    } else {
+      for (OpenFold& fold : lists.fold) fold = OpenFold();
+    }
   }
   if (worth_trimming(n, grown[most])) {
     std::array<double, 3> from = low, to = high;

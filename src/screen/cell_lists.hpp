@@ -320,8 +320,10 @@ double coarse_slack(const BoxGeometry& geometry, double reach,
 // `limit` cells in all, else grown alike along every axis until it does;
 // across a periodic axis whole cells over the box's width, along an open
 // axis over the region [from[k] - margin, to[k] + margin] (one cell more,
-// for the rounding at its ends). Sets grid.cells and grid.inverse_side and
-// returns the factor by which the cells grew (1: as asked).
+// for the rounding at its ends); at most 1e6 cells along an axis, wider
+// there where the region needs more. Sets grid.cells and grid.inverse_side
+// and returns the factor by which the cells grew (1: as asked; the widest
+// axis's factor).
 double size_cells(const BoxGeometry& geometry, const std::array<double, 3>& side,
                   const std::array<double, 3>& from, const std::array<double, 3>& to, double margin,
                   double limit, ClassGrid& grid);

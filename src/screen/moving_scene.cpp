@@ -297,14 +297,31 @@ struct MovingScene::Impl {
         }
       const double slack = slack_over(from, to);
       const double folded_side = 2 * cutoff * radius + 4 * slack;
-      g = screen::ClassGrid();
-      g.largest_reach = cutoff * radius;
-      grown = screen::size_cells(geometry, {folded_side, folded_side, folded_side}, from, to,
-                                 folded_side, limit, g);
-      low = from;
-      high = to;
-      lists.slack = slack;
-      side = folded_side;
+      screen::ClassGrid folded;
+      folded.largest_reach = cutoff * radius;
+      const double folded_grown = screen::size_cells(
+          geometry, {folded_side, folded_side, folded_side}, from, to, folded_side, limit, folded);
+      // Kept only where its cells are finer than the trim's alone would
+      // make them (as in the screen's cell lists).
+      std::array<double, 3> trim_from = low, trim_to = high;
+      screen::region_without_outliers(store, geometry, trim_from, trim_to);
+      const double trimmed_side = 2 * cutoff * radius + 4 * slack_over(trim_from, trim_to);
+      screen::ClassGrid trial;
+      const double trimmed =
+          trimmed_side * screen::size_cells(geometry, {trimmed_side, trimmed_side, trimmed_side},
+                                            trim_from, trim_to, trimmed_side, limit, trial);
+      const double unfolded =
+          screen::trimmed_is_finer(grown * side, trimmed) ? trimmed : grown * side;
+      if (folded_grown * folded_side < unfolded) {
+        g = std::move(folded);
+        grown = folded_grown;
+        low = from;
+        high = to;
+        lists.slack = slack;
+        side = folded_side;
+      } else {
+        for (screen::OpenFold& fold : lists.fold) fold = screen::OpenFold();
+      }
     }
     if (screen::worth_trimming(n, grown)) {
       // (The quantiles of the centres, then where folded their cell-space
