@@ -430,22 +430,21 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
         grown[c] = size_cells(geometry, side[c], from, to, 0, cell_limit[c],
                               lists.grids[std::size_t(compact[c])]);
   };
+  // The region without the outliers, in the centres' coordinates (taken
+  // once, for the fold's comparison and the trim).
+  std::array<double, 3> trim_from = low, trim_to = high;
+  if (worth_trimming(n, grown[most]))
+    region_without_outliers(particles, geometry, trim_from, trim_to);
   if (worth_trimming(n, grown[most]) &&
       fold_empty_stretches(particles, geometry, low, high, 4 * cutoff * largest, lists)) {
     std::array<double, 3> from = low, to = high;
-    for (int k = 0; k < 3; ++k)
-      if (!lists.fold[std::size_t(k)].pivot.empty()) {
-        from[k] = 0;
-        to[k] = lists.open_coordinate(k, high[k]);
-      }
+    lists.fold_region(from, to);
     // Kept only where its cells are finer than the trim's alone would make
     // them (a few outliers spread over a few widths of the rest far away:
     // their own gaps too short to fold, the folded grid spent its cells on
     // them, where the trim leaves them to the outer cells).
     ClassGrid trial;
     const double folded = size_cells(geometry, side[most], from, to, 0, cell_limit[most], trial);
-    std::array<double, 3> trim_from = low, trim_to = high;
-    region_without_outliers(particles, geometry, trim_from, trim_to);
     const double trimmed =
         size_cells(geometry, side[most], trim_from, trim_to, 0, cell_limit[most], trial);
     const double unfolded = trimmed_is_finer(grown[most], trimmed) ? trimmed : grown[most];
@@ -458,13 +457,8 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     }
   }
   if (worth_trimming(n, grown[most])) {
-    std::array<double, 3> from = low, to = high;
-    region_without_outliers(particles, geometry, from, to);
-    for (int k = 0; k < 3; ++k)
-      if (!lists.fold[std::size_t(k)].pivot.empty()) {
-        from[k] = lists.open_coordinate(k, from[k]);
-        to[k] = lists.open_coordinate(k, to[k]);
-      }
+    std::array<double, 3> from = trim_from, to = trim_to;
+    lists.fold_region(from, to);
     ClassGrid trimmed;
     if (trimmed_is_finer(grown[most], size_cells(geometry, side[most], from, to, 0,
                                                  cell_limit[most], trimmed))) {

@@ -262,6 +262,15 @@ struct CellLists {
   double open_coordinate(int k, double x) const {
     return folded_coordinate(fold[std::size_t(k)], origin[std::size_t(k)], x);
   }
+  // A region [from, to] of centres' coordinates in the coordinates of a
+  // folded open axis, u(from) and u(to) (unchanged elsewhere).
+  void fold_region(std::array<double, 3>& from, std::array<double, 3>& to) const {
+    for (int k = 0; k < 3; ++k)
+      if (!fold[std::size_t(k)].pivot.empty()) {
+        from[std::size_t(k)] = open_coordinate(k, from[std::size_t(k)]);
+        to[std::size_t(k)] = open_coordinate(k, to[std::size_t(k)]);
+      }
+  }
   // The cell-space coordinates of a wrapped centre (see BoxGeometry).
   void cell_space(const double w[3], double u[3]) const {
     if (geometry.triclinic) {

@@ -285,16 +285,17 @@ struct MovingScene::Impl {
     // Where they had to grow, first over the region without its long empty
     // stretches along the open axes (screen::fold_empty_stretches: clusters
     // far apart), in cell-space coordinates from `low` along a folded axis.
-    const std::array<double, 3> fold_origin = low, raw_high = high;
+    const std::array<double, 3> fold_origin = low;
     lists.origin = low;
+    // The region without the outliers, in the centres' coordinates (taken
+    // once, for the fold's comparison and the trim).
+    std::array<double, 3> trim_from = low, trim_to = high;
+    if (screen::worth_trimming(n, grown))
+      screen::region_without_outliers(store, geometry, trim_from, trim_to);
     if (screen::worth_trimming(n, grown) &&
         screen::fold_empty_stretches(store, geometry, low, high, 4 * cutoff * radius, lists)) {
       std::array<double, 3> from = low, to = high;
-      for (int k = 0; k < 3; ++k)
-        if (!lists.fold[std::size_t(k)].pivot.empty()) {
-          from[k] = 0;
-          to[k] = lists.open_coordinate(k, high[k]);
-        }
+      lists.fold_region(from, to);
       const double slack = slack_over(from, to);
       const double folded_side = 2 * cutoff * radius + 4 * slack;
       screen::ClassGrid folded;
@@ -303,8 +304,6 @@ struct MovingScene::Impl {
           geometry, {folded_side, folded_side, folded_side}, from, to, folded_side, limit, folded);
       // Kept only where its cells are finer than the trim's alone would
       // make them (as in the screen's cell lists).
-      std::array<double, 3> trim_from = low, trim_to = high;
-      screen::region_without_outliers(store, geometry, trim_from, trim_to);
       const double trimmed_side = 2 * cutoff * radius + 4 * slack_over(trim_from, trim_to);
       screen::ClassGrid trial;
       const double trimmed =
@@ -326,13 +325,8 @@ struct MovingScene::Impl {
     if (screen::worth_trimming(n, grown)) {
       // (The quantiles of the centres, then where folded their cell-space
       // coordinates: the fold is non-decreasing.)
-      std::array<double, 3> from = fold_origin, to = raw_high;
-      screen::region_without_outliers(store, geometry, from, to);
-      for (int k = 0; k < 3; ++k)
-        if (!lists.fold[std::size_t(k)].pivot.empty()) {
-          from[k] = lists.open_coordinate(k, from[k]);
-          to[k] = lists.open_coordinate(k, to[k]);
-        }
+      std::array<double, 3> from = trim_from, to = trim_to;
+      lists.fold_region(from, to);
       screen::ClassGrid trimmed;
       trimmed.largest_reach = g.largest_reach;
       const double slack = slack_over(from, to);
