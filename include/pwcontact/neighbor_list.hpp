@@ -87,9 +87,30 @@ class SkinNeighborList {
   // the in-plane ones of a 2D box's particles, all in its plane).
   std::vector<double> centre_[3], q_[6], inscribed_;
   bool in_plane_ = false;
-  // The listed pairs (i < j) and the lambda each had at its last solve.
+  // The listed pairs (i < j), in the order of first then second.
   std::vector<std::uint32_t> first_, second_;
+  // Kept steps take the particles in an order along the cells of space
+  // (rank_: each particle's place in it, from the last rebuild) and the
+  // pairs in the order of their first particle's place: the pair at place
+  // p is listed pair listed_at_[p] (and listed pair k at place
+  // place_of_[k]), its particles at places near_first_[p] and
+  // near_second_[p], and lambda_[p] the lambda it had at its last solve.
+  std::vector<std::uint32_t> rank_, near_first_, near_second_, listed_at_, place_of_;
   std::vector<double> lambda_;
+  // The numbers of a kept step, kept for the next one: the particles side by
+  // side in the order of rank_, and each pair's answer by its place
+  // (stamped with the step that solved it).
+  struct Packed {
+    double centre[3], q[6], bounding;
+  };
+  struct Answer {
+    double mu2;
+    std::uint32_t step;
+    Status status;
+  };
+  std::vector<Packed> packed_;
+  std::vector<Answer> answers_;
+  std::uint32_t step_ = 0;
   ScreenWorkspace workspace_;  // of the rebuilds' screens
   ScreenedPairs listed_;       // what the last rebuild's screen listed
 };
