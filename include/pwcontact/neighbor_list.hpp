@@ -31,7 +31,9 @@
 // double-precision kernels start their Newton iteration from: one step and
 // the convergence check, where a cold start takes three and the check. The
 // pairs are gathered and solved a chunk at a time over the threads (a chunk
-// stays in cache between the gather and the solve).
+// stays in cache between the gather and the solve), in an order along the
+// cells of space made at each rebuild (a pair's second particle is then
+// near the particles gathered before it in memory).
 #pragma once
 
 #include <cstddef>
