@@ -358,8 +358,9 @@ TEST(SkinNeighborList, WarmStartsSaveEvaluationsAndGiveTheColdAnswers) {
 // one Newton step and the check, 2 evaluations; measured 2.0-2.1, where
 // the radial guess takes 4), and the pairs come out as the fresh screen's,
 // sorted, the same with 1 and 2 threads. In a periodic triclinic box, and
-// in an open one where one particle far away coarsens the order's cells to
-// a few across the scene.
+// in an open one with a particle far away (which the order's grid leaves
+// to its outer cells: stretched over it, the grid put every other particle
+// in one cell).
 TEST(SkinNeighborList, PairsTakenInTheOrderOfSpaceKeepTheirOwnLambdaAndComeOutSorted) {
   for (int kind = 0; kind < 2; ++kind) {
     const bool open = kind == 1;

@@ -27,7 +27,8 @@
 // sqrt(2) (a^2 - c^2) theta.)
 //
 // Warm start: the pairs of a kept list are solved again from the lambda
-// each had at the last step (PairBatchView::lambda_start), which the
+// each had at the last step (the first kept step after a rebuild from the
+// radial guess: the screen keeps no lambda) (PairBatchView::lambda_start), which the
 // double-precision kernels start their Newton iteration from: one step and
 // the convergence check, where a cold start takes three and the check. The
 // pairs are gathered and solved a chunk at a time over the threads (a chunk

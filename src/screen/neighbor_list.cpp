@@ -58,11 +58,11 @@ bool in_plane(const ParticleStore& particles, std::size_t i) {
 // centres (about two particles a cell, cells in the order of x, then y,
 // then z), by a counting sort. The listed pairs, taken in the order of
 // their first particle's place, then find the numbers of both particles
-// near those of the pairs before them: in the order of the indices, a
-// pair's second particle is anywhere in memory, and its gather was a cache
-// miss (1M spheroids at 0.3, 3.7M listed pairs: 0.88 s a kept step, of
-// which 0.07 s was the solve). Only the order depends on the grid: far
-// outliers of an open box coarsen it, and the answers stay the same.
+// near those of the pairs before them, where in the order of the indices
+// a pair's second particle is anywhere in memory (with the prefetches of
+// the kept step, measured 20-25 % of a kept step: 1M spheroids at 0.3,
+// 3.7M listed pairs, one thread). Only the order depends on the grid,
+// never the answers.
 std::vector<std::uint32_t> spatial_ranks(const ParticleStore& particles,
                                          const screen::BoxGeometry& geometry, int threads) {
   const std::size_t n = particles.size();
@@ -79,9 +79,27 @@ std::vector<std::uint32_t> spatial_ranks(const ParticleStore& particles,
     geometry.wrap(given, w);
     for (int k = 0; k < 3; ++k) low[k] = std::min(low[k], w[k]), high[k] = std::max(high[k], w[k]);
   }
-  // Cells of one side, as many as about half the particles, shaped as the
-  // centres' bounding box (an axis without extent, or whose extent
-  // overflows, gets one cell).
+  // The grid covers the centres without the farthest: along each axis from
+  // the 1/64 to the 63/64 quantile of a sample of at most 4,096 centres (a
+  // particle far away would otherwise stretch the cells over the whole
+  // scene, with every other particle in one of them); those beyond fall in
+  // the outer cells. (Clusters far apart still share a few cells.)
+  {
+    const std::size_t stride = std::max<std::size_t>(1, n / 4096);
+    std::vector<double> sample;
+    for (int k = 0; k < 3; ++k) {
+      sample.clear();
+      for (std::size_t i = 0; i < n; i += stride) sample.push_back(wrapped[3 * i + std::size_t(k)]);
+      if (sample.size() < 64) continue;
+      std::sort(sample.begin(), sample.end());
+      const double from = sample[sample.size() / 64],
+                   to = sample[sample.size() - 1 - sample.size() / 64];
+      if (to > from) low[k] = from, high[k] = to;
+    }
+  }
+  // Cells of one side, as many as about half the particles, shaped as that
+  // region (an axis without extent, or whose extent overflows, gets one
+  // cell), and fewer than 2^32.
   double extent[3], volume = 1;
   int dimensions = 0;
   for (int k = 0; k < 3; ++k) {
@@ -100,7 +118,7 @@ std::vector<std::uint32_t> spatial_ranks(const ParticleStore& particles,
       cells[k] = std::size_t(std::min(along, double(1 << 20)));
       total *= double(cells[k]);
     }
-    if (total <= 4 * wanted + 64) break;
+    if (total <= 4 * wanted + 64 && total < 4294967295.0) break;
     side *= 2;
   }
   const double inverse_side = 1 / side;
@@ -180,11 +198,16 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     screen_options.threads = threads;
     screen_options.batch = options_.batch;
     const ScreenReport screened = screen_pairs(particles, box, screen_options, listed_, workspace_);
-    // The particles' places along the cells, and the pairs by their first
-    // particle's place (a counting sort), made before anything of the old
-    // list is replaced.
-    std::vector<std::uint32_t> rank = spatial_ranks(particles, geometry, threads);
+    // Pairs are indexed by 32-bit numbers below (as particles are).
     const std::size_t pairs = listed_.size();
+    if (pairs > std::numeric_limits<std::uint32_t>::max())
+      throw std::length_error("SkinNeighborList: " + std::to_string(pairs) +
+                              " pairs within cutoff + skin, more than 2^32 - 1");
+    // Everything of the new list is made first and then swapped in: a
+    // failure on the way (out of memory) leaves the old list whole.
+    // The particles' places along the cells, and the pairs by their first
+    // particle's place (a counting sort).
+    std::vector<std::uint32_t> rank = spatial_ranks(particles, geometry, threads);
     std::vector<std::uint32_t> listed_at(pairs), near_first(pairs), near_second(pairs);
     {
       std::vector<std::uint32_t> at(n + 1, 0);
@@ -201,28 +224,34 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     }
     std::vector<double> lambda(pairs, std::numeric_limits<double>::quiet_NaN());
     std::vector<Answer> answers(pairs, Answer{0, 0, Status::ok});
-    inscribed_.clear();  // (until it is made below: a failure on the way leaves no list to keep)
-    box_ = box;
-    for (int k = 0; k < 3; ++k) centre_[k] = particles.centre(k);
-    for (int k = 0; k < 6; ++k) q_[k] = particles.q(k);
-    inscribed_ = particles.inscribed_radius();
-    in_plane_ = box.two_dimensional;
-    for (std::size_t i = 0; i < n && in_plane_; ++i) in_plane_ = in_plane(particles, i);
-    if (in_plane_)
+    std::vector<double> centre[3], q[6];
+    for (int k = 0; k < 3; ++k) centre[k] = particles.centre(k);
+    for (int k = 0; k < 6; ++k) q[k] = particles.q(k);
+    std::vector<double> inscribed = particles.inscribed_radius();
+    bool planar = box.two_dimensional;
+    for (std::size_t i = 0; i < n && planar; ++i) planar = in_plane(particles, i);
+    if (planar)
       for (std::size_t i = 0; i < n; ++i) {
-        const double q[6] = {q_[0][i], q_[1][i], q_[2][i], q_[3][i], q_[4][i], q_[5][i]};
-        inscribed_[i] = in_plane_inscribed(q, inscribed_[i]);
+        const double form[6] = {q[0][i], q[1][i], q[2][i], q[3][i], q[4][i], q[5][i]};
+        inscribed[i] = in_plane_inscribed(form, inscribed[i]);
       }
-    ++rebuilds_;
-    out = ScreenedPairs();
-    for (std::size_t k = 0; k < listed_.size(); ++k)
+    ScreenedPairs found;
+    for (std::size_t k = 0; k < pairs; ++k)
       if (listed_.mu2[k] < cutoff * cutoff) {
-        out.i.push_back(listed_.i[k]);
-        out.j.push_back(listed_.j[k]);
-        out.mu2.push_back(listed_.mu2[k]);
+        found.i.push_back(listed_.i[k]);
+        found.j.push_back(listed_.j[k]);
+        found.mu2.push_back(listed_.mu2[k]);
       }
+    // (From here on nothing throws.)
+    box_ = box;
+    for (int k = 0; k < 3; ++k) centre_[k].swap(centre[k]);
+    for (int k = 0; k < 6; ++k) q_[k].swap(q[k]);
+    inscribed_.swap(inscribed);
+    in_plane_ = planar;
+    ++rebuilds_;
+    out = std::move(found);
     report.rebuilt = true;
-    report.listed = listed_.size();
+    report.listed = pairs;
     // The list taken over (its old arrays left to the next rebuild's screen).
     first_.swap(listed_.i);
     second_.swap(listed_.j);
@@ -285,14 +314,25 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
 #pragma omp parallel num_threads(threads) reduction(+ : solved_count, evaluations, seconds_solve)
   {
     // A chunk's pairs, written in place (15 columns of `chunk` numbers).
-    PairBatch<double> batch(chunk);
-    double* column[pair_columns];
-    for (int k = 0; k < 3; ++k) column[k] = batch.r12(k).data();
-    for (int k = 0; k < 6; ++k)
-      column[3 + k] = batch.q1(k).data(), column[9 + k] = batch.q2(k).data();
-    std::vector<std::uint32_t> which(chunk);
-    std::vector<double> guess(chunk), chunk_mu2(chunk), chunk_lambda(chunk);
-    std::vector<Status> chunk_status(chunk);
+    // (Allocated through errors.run, as everything in the region that may
+    // throw: a thread whose allocation failed runs no chunk, since run()
+    // skips every body once an error is kept.)
+    PairBatch<double> batch;
+    double* column[pair_columns] = {};
+    std::vector<std::uint32_t> which;
+    std::vector<double> guess, chunk_mu2, chunk_lambda;
+    std::vector<Status> chunk_status;
+    errors.run([&] {
+      batch.resize(chunk);
+      for (int k = 0; k < 3; ++k) column[k] = batch.r12(k).data();
+      for (int k = 0; k < 6; ++k)
+        column[3 + k] = batch.q1(k).data(), column[9 + k] = batch.q2(k).data();
+      which.resize(chunk);
+      guess.resize(chunk);
+      chunk_mu2.resize(chunk);
+      chunk_lambda.resize(chunk);
+      chunk_status.resize(chunk);
+    });
     BatchOptions batch_options = options_.batch;
     batch_options.threads = 1;
 #pragma omp for schedule(dynamic, 4)
@@ -351,26 +391,30 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
   std::vector<std::vector<std::uint32_t>> found_pairs(blocks);
   std::vector<std::vector<double>> found_mu2(blocks);
   std::vector<std::size_t> unanswered(blocks, listed);
+  detail::ParallelErrors output_errors;
 #pragma omp parallel for num_threads(threads) schedule(static, 1)
   for (std::size_t b = 0; b < blocks; ++b) {
-    const std::size_t from = listed * b / blocks, to = listed * (b + 1) / blocks;
-    for (std::size_t k = from; k < to; ++k) {
-      // (Read in the order of the list from the order they were solved in:
-      // asked for a few pairs ahead.)
-      if (k + prefetch_distance < to)
-        __builtin_prefetch(&answers_[place_of_[k + prefetch_distance]]);
-      const Answer& a = answers_[place_of_[k]];
-      if (a.step != step) continue;
-      if (!is_valid(a.status) && a.status != Status::out_of_range) {
-        unanswered[b] = k;
-        break;
+    output_errors.run([&] {
+      const std::size_t from = listed * b / blocks, to = listed * (b + 1) / blocks;
+      for (std::size_t k = from; k < to; ++k) {
+        // (Read in the order of the list from the order they were solved in:
+        // asked for a few pairs ahead.)
+        if (k + prefetch_distance < to)
+          __builtin_prefetch(&answers_[place_of_[k + prefetch_distance]]);
+        const Answer& a = answers_[place_of_[k]];
+        if (a.step != step) continue;
+        if (!is_valid(a.status) && a.status != Status::out_of_range) {
+          unanswered[b] = k;
+          break;
+        }
+        if (a.mu2 < cutoff2) {
+          found_pairs[b].push_back(std::uint32_t(k));
+          found_mu2[b].push_back(a.mu2);
+        }
       }
-      if (a.mu2 < cutoff2) {
-        found_pairs[b].push_back(std::uint32_t(k));
-        found_mu2[b].push_back(a.mu2);
-      }
-    }
+    });
   }
+  output_errors.rethrow_if_failed();
   const std::size_t missing = *std::min_element(unanswered.begin(), unanswered.end());
   if (missing < listed)
     throw std::runtime_error("SkinNeighborList: the pair (" + std::to_string(first_[missing]) +
