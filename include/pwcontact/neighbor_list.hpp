@@ -94,11 +94,11 @@ class SkinNeighborList {
   std::vector<std::uint32_t> first_, second_;
   // Kept steps take the particles in an order along the cells of space
   // (rank_: each particle's place in it, from the last rebuild) and the
-  // pairs in the order of their first particle's place: the pair at place
-  // p is listed pair listed_at_[p] (and listed pair k at place
-  // place_of_[k]), its particles at places near_first_[p] and
-  // near_second_[p], and lambda_[p] the lambda it had at its last solve.
-  std::vector<std::uint32_t> rank_, near_first_, near_second_, listed_at_, place_of_;
+  // pairs in the order of their first particle's place: listed pair k is at
+  // place place_of_[k], and the pair at place p has its particles at places
+  // near_first_[p] and near_second_[p], and lambda_[p] the lambda it had at
+  // its last solve.
+  std::vector<std::uint32_t> rank_, near_first_, near_second_, place_of_;
   std::vector<double> lambda_;
   // The numbers of a kept step, kept for the next one: the particles side by
   // side in the order of rank_, and each pair's answer by its place

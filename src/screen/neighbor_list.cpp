@@ -54,6 +54,18 @@ bool in_plane(const ParticleStore& particles, std::size_t i) {
   return particles.centre(2)[i] == 0 && particles.q(2)[i] == 0 && particles.q(4)[i] == 0;
 }
 
+// Each item's place when the items are ordered by key (a stable counting
+// sort; keys below `keys_end`).
+std::vector<std::uint32_t> places_by_key(const std::vector<std::uint32_t>& key,
+                                         std::size_t keys_end) {
+  std::vector<std::uint32_t> start(keys_end + 1, 0);
+  for (std::uint32_t k : key) ++start[k + 1];
+  for (std::size_t c = 0; c < keys_end; ++c) start[c + 1] += start[c];
+  std::vector<std::uint32_t> place(key.size());
+  for (std::size_t i = 0; i < key.size(); ++i) place[i] = start[key[i]]++;
+  return place;
+}
+
 // Each particle's place in an order along a grid of cells over the wrapped
 // centres (about two particles a cell, cells in the order of x, then y,
 // then z), by a counting sort. The listed pairs, taken in the order of
@@ -133,13 +145,7 @@ std::vector<std::uint32_t> spatial_ranks(const ParticleStore& particles,
     }
     cell[i] = std::uint32_t((c[0] * cells[1] + c[1]) * cells[2] + c[2]);
   }
-  const std::size_t total = cells[0] * cells[1] * cells[2];
-  std::vector<std::uint32_t> start(total + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++start[cell[i] + 1];
-  for (std::size_t c = 0; c < total; ++c) start[c + 1] += start[c];
-  std::vector<std::uint32_t> rank(n);
-  for (std::size_t i = 0; i < n; ++i) rank[i] = start[cell[i]]++;
-  return rank;
+  return places_by_key(cell, cells[0] * cells[1] * cells[2]);
 }
 
 }  // namespace
@@ -208,19 +214,16 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     // The particles' places along the cells, and the pairs by their first
     // particle's place (a counting sort).
     std::vector<std::uint32_t> rank = spatial_ranks(particles, geometry, threads);
-    std::vector<std::uint32_t> listed_at(pairs), near_first(pairs), near_second(pairs);
+    std::vector<std::uint32_t> place_of;
     {
-      std::vector<std::uint32_t> at(n + 1, 0);
-      for (std::size_t k = 0; k < pairs; ++k) ++at[rank[listed_.i[k]] + 1];
-      for (std::size_t r = 0; r < n; ++r) at[r + 1] += at[r];
-      for (std::size_t k = 0; k < pairs; ++k)
-        listed_at[at[rank[listed_.i[k]]]++] = std::uint32_t(k);
+      std::vector<std::uint32_t> first_rank(pairs);
+      for (std::size_t k = 0; k < pairs; ++k) first_rank[k] = rank[listed_.i[k]];
+      place_of = places_by_key(first_rank, n);
     }
-    std::vector<std::uint32_t> place_of(pairs);
-    for (std::size_t p = 0; p < pairs; ++p) {
-      near_first[p] = rank[listed_.i[listed_at[p]]];
-      near_second[p] = rank[listed_.j[listed_at[p]]];
-      place_of[listed_at[p]] = std::uint32_t(p);
+    std::vector<std::uint32_t> near_first(pairs), near_second(pairs);
+    for (std::size_t k = 0; k < pairs; ++k) {
+      near_first[place_of[k]] = rank[listed_.i[k]];
+      near_second[place_of[k]] = rank[listed_.j[k]];
     }
     std::vector<double> lambda(pairs, std::numeric_limits<double>::quiet_NaN());
     std::vector<Answer> answers(pairs, Answer{0, 0, Status::ok});
@@ -256,7 +259,6 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
     first_.swap(listed_.i);
     second_.swap(listed_.j);
     rank_.swap(rank);
-    listed_at_.swap(listed_at);
     place_of_.swap(place_of);
     near_first_.swap(near_first);
     near_second_.swap(near_second);
