@@ -269,7 +269,7 @@ TEST(MovingScene, TheCoarseKernelOfEveryIsaKeepsWhatTheExactTestKeeps) {
     for (int round = 0; round < 3000; ++round) {
       const double scale = std::pow(10.0, -160 + 310 * unit(engine));
       const std::uint32_t n = std::uint32_t(engine() % 33);
-      // Arrays padded to whole registers, with junk in the padding.
+      // Members beyond n (whole registers are read) are junk.
       std::vector<double> x(40), y(40), z(40), bounding(40);
       const double origin[3] = {scale * (unit(engine) - 0.5), scale * (unit(engine) - 0.5),
                                 scale * (unit(engine) - 0.5)};
@@ -286,8 +286,16 @@ TEST(MovingScene, TheCoarseKernelOfEveryIsaKeepsWhatTheExactTestKeeps) {
         y[k] = origin[1] + at * d[1] / norm;
         z[k] = origin[2] + at * d[2] / norm;
       }
-      const std::uint32_t bits =
-          meet({x.data(), y.data(), z.data(), bounding.data()}, n, origin, reach, cut);
+      // In the scene's tiles (kernels::CoarseMembers): rows of coarse_tile.
+      std::vector<double> tiles(4 * 40);
+      for (std::size_t k = 0; k < 40; ++k) {
+        double* row = tiles.data() + pwcontact::kernels::coarse_place(k);
+        row[0] = x[k];
+        row[pwcontact::kernels::coarse_tile] = y[k];
+        row[2 * pwcontact::kernels::coarse_tile] = z[k];
+        row[3 * pwcontact::kernels::coarse_tile] = bounding[k];
+      }
+      const std::uint32_t bits = meet({tiles.data()}, n, origin, reach, cut);
       for (std::uint32_t k = 0; k < 32; ++k) {
         const bool set = (bits >> k) & 1u;
         if (k >= n) {

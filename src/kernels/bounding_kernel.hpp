@@ -26,13 +26,16 @@ std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t 
   const B ox(origin[0]), oy(origin[1]), oz(origin[2]), r(reach), s(scale);
   const B widen(1 + 1e-12), floor(1e-300);
   std::uint32_t meet = 0;
-  // Whole registers: the blocks are padded to a multiple of 8 members
-  // (coarse_padding), so lanes beyond n read padding, masked off below.
+  // Whole registers: a cell's room is whole tiles of coarse_tile members, a
+  // multiple of the lanes, so lanes beyond n read the tile's unused slots,
+  // masked off below.
+  static_assert(coarse_tile % lanes == 0, "a register within one row of a tile");
   for (std::uint32_t k = 0; k < n; k += lanes) {
-    const B x = B::load_unaligned(members.x + k) - ox;
-    const B y = B::load_unaligned(members.y + k) - oy;
-    const B z = B::load_unaligned(members.z + k) - oz;
-    const B limit = xsimd::fma(s, B::load_unaligned(members.bounding + k), r);
+    const double* row = members.tiles + coarse_place(k);
+    const B x = B::load_unaligned(row) - ox;
+    const B y = B::load_unaligned(row + coarse_tile) - oy;
+    const B z = B::load_unaligned(row + 2 * coarse_tile) - oz;
+    const B limit = xsimd::fma(s, B::load_unaligned(row + 3 * coarse_tile), r);
     const B rr = xsimd::fma(x, x, xsimd::fma(y, y, z * z));
     meet |= lane_bits(rr < xsimd::fma(limit * limit, widen, floor)) << k;
   }

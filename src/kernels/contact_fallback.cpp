@@ -38,9 +38,10 @@ std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t 
                                     const double origin[3], double reach, double scale) {
   std::uint32_t meet = 0;
   for (std::uint32_t k = 0; k < n; ++k) {
-    const double x = members.x[k] - origin[0], y = members.y[k] - origin[1],
-                 z = members.z[k] - origin[2];
-    const double limit = reach + scale * members.bounding[k];
+    const double* row = members.tiles + coarse_place(k);
+    const double x = row[0] - origin[0], y = row[coarse_tile] - origin[1],
+                 z = row[2 * coarse_tile] - origin[2];
+    const double limit = reach + scale * row[3 * coarse_tile];
     meet |= std::uint32_t(x * x + y * y + z * z < limit * limit) << k;
   }
   return meet;

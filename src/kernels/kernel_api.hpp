@@ -96,16 +96,23 @@ using OverlapKernel = void (*)(const PairSpan<In>& in, const OverlapSpan& out, s
                                const ChunkSettings& settings, const Scratch& scratch,
                                ChunkCounters& counters);
 
-// A cell's members as the coarse test of a moving scene reads them: centres
-// and bounding radii, each in its own array, padded to a multiple of
-// coarse_padding members (the kernels read whole registers).
+// A cell's members as the coarse test of a moving scene reads them, in
+// tiles of coarse_tile members: a tile is four rows of coarse_tile numbers,
+// the members' centres along x, y and z and their bounding radii, and a
+// cell's room is a whole number of tiles (the kernels read whole registers
+// of a row). A cell of up to eight members is then four adjacent cache
+// lines, not four lines a room apart (the rows of the whole room one after
+// the other, as before): at packing 0.3, where a query is a sixth memory
+// traffic, single queries measured 5-10 % faster with the tiles.
+inline constexpr std::uint32_t coarse_tile = 8;
 struct CoarseMembers {
-  const double* x;
-  const double* y;
-  const double* z;
-  const double* bounding;
+  const double* tiles;
 };
-inline constexpr std::uint32_t coarse_padding = 8;
+// Where member k's centre along x is in its cell's tiles; along y, along z
+// and its bounding radius follow, coarse_tile numbers apart each.
+constexpr std::size_t coarse_place(std::size_t k) {
+  return k / coarse_tile * 4 * coarse_tile + k % coarse_tile;
+}
 
 // Bit k set for every member k < n (n <= 32) whose bounding sphere may meet
 // the trial's: |c_k - origin|^2 < (reach + scale R_k)^2, on the safe side

@@ -26,11 +26,10 @@ namespace {
 
 // What the coarse test reads of a member, its centre wrapped into the box
 // (as given along open axes) and its bounding radius, is kept per cell in
-// four arrays (Impl::coarse), so that a register of members is tested at a
-// time. The rest of a member, read only for the pairs the bounding spheres
-// leave, is one cache line in the order of the cells (a sweep through the
-// scene reads it from cache, not from the particle store's arrays in the
-// order of the indices).
+// tiles of four rows (Impl::coarse, kernels::CoarseMembers), so that a
+// register of members is tested at a time. The rest of a member, read only for the pairs the
+// bounding spheres leave, is one cache line in the order of the cells (a sweep through the scene
+// reads it from cache, not from the particle store's arrays in the order of the indices).
 struct alignas(64) Detail {
   double q[6];
   double inscribed, sphere;
@@ -85,11 +84,10 @@ struct TrialSide {
 // both (own first).
 enum class Cells { own, others, all };
 
-// A cell's slots: `room` of them (a multiple of the coarse kernel's
-// padding) from slot `start` of the scene's arrays. (When every cell has
-// the same room, as in a uniform scene, a query computes a cell's start
-// from its index instead: loaded, it delayed the loads of the cell's members
-// that depend on it, and single queries at 0.3 took 5-9 % longer.)
+// A cell's slots: `room` of them (whole tiles of the coarse test's) from slot `start` of the
+// scene's arrays. (When every cell has the same room, as in a uniform scene, a query computes a
+// cell's start from its index instead: loaded, it delayed the loads of the cell's members that
+// depend on it, and single queries at 0.3 took 5-9 % longer.)
 struct CellSlots {
   std::uint64_t start;
   std::uint32_t room, unused;
@@ -105,7 +103,7 @@ struct MovingScene::Impl {
   double grid_radius = 0;      // the bounding radius the cells are sized for (0: empty scene)
   double side = 0;             // the narrowest cell, in cell space
   std::size_t base_room = 0;   // the slots of a cell that holds few particles
-  std::vector<double> coarse;  // per cell, from 4 start: x[room], y[..], z[..], bounding[..]
+  std::vector<double> coarse;  // per cell, from 4 start: its tiles (kernels::CoarseMembers)
   kernels::BoundingKernel bounding_spheres_meet = nullptr;  // of the scene's instruction set
   std::vector<Detail> details;                              // per slot
   std::vector<std::uint32_t> members;                       // per slot: particle indices
@@ -172,15 +170,15 @@ struct MovingScene::Impl {
   void write_slot(std::size_t cell, std::size_t slot, std::size_t i) {
     const CellSlots& c = slots[cell];
     const std::uint64_t at = c.start + slot;
-    const std::size_t room = c.room;
-    double* block = coarse.data() + c.start * 4;
+    double* row = coarse.data() + c.start * 4 + kernels::coarse_place(slot);
     const double x[3] = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
     double wrapped[3];
     lists.geometry.wrap(x, wrapped);
-    block[slot] = wrapped[0];
-    block[room + slot] = wrapped[1];
-    block[2 * room + slot] = wrapped[2];
-    block[3 * room + slot] = store.bounding_radius()[i];
+    constexpr std::size_t tile = kernels::coarse_tile;
+    row[0] = wrapped[0];
+    row[tile] = wrapped[1];
+    row[2 * tile] = wrapped[2];
+    row[3 * tile] = store.bounding_radius()[i];
     home[i] = std::uint32_t(cell);
     Detail& d = details[at];
     for (int k = 0; k < 6; ++k) d.q[k] = store.q(k)[i];
@@ -207,8 +205,10 @@ struct MovingScene::Impl {
     const std::uint64_t last = c.start + (in_use - 1);
     if (at != last) {
       double* block = coarse.data() + c.start * 4;
-      const std::size_t a = std::size_t(at - c.start), b = std::size_t(last - c.start);
-      for (int d = 0; d < 4; ++d) block[d * c.room + a] = block[d * c.room + b];
+      double* to = block + kernels::coarse_place(std::size_t(at - c.start));
+      const double* from = block + kernels::coarse_place(std::size_t(last - c.start));
+      for (std::size_t d = 0; d < 4; ++d)
+        to[d * kernels::coarse_tile] = from[d * kernels::coarse_tile];
       details[at] = details[last];
       members[at] = members[last];
       where[members[at]] = at;  // (its home is this cell already)
@@ -375,7 +375,7 @@ struct MovingScene::Impl {
     // cluster get rooms of their own (a uniform room for the fullest made
     // memory grow as cells x fullest, ~N^2).
     auto padded = [](std::size_t r) {
-      return (r + kernels::coarse_padding - 1) / kernels::coarse_padding * kernels::coarse_padding;
+      return (r + kernels::coarse_tile - 1) / kernels::coarse_tile * kernels::coarse_tile;
     };
     const double mean = cell_total ? double(n) / double(cell_total) : 0;
     const std::size_t most = padded(std::size_t(4 * mean) + 16);
@@ -466,11 +466,10 @@ struct MovingScene::Impl {
   // ---------------------------------------------------------------------
   // Queries
 
-  // A cell's coarse members: four arrays of `room` numbers (a multiple of
-  // the kernels' coarse_padding), centres x, y, z and bounding radii.
-  kernels::CoarseMembers coarse_of(std::uint64_t start, std::size_t room) const {
-    const double* block = coarse.data() + start * 4;
-    return {block, block + room, block + 2 * room, block + 3 * room};
+  // A cell's coarse members: its tiles, from its first slot (a whole
+  // number of tiles from the first cell's).
+  kernels::CoarseMembers coarse_of(std::uint64_t start) const {
+    return {coarse.data() + start * 4};
   }
 
   // Where a query looks: the trial's wrapped centre (and in cell space), the
@@ -567,24 +566,24 @@ struct MovingScene::Impl {
     // a packing at 0.5, 7 of 128 members scanned a query meet.
     auto scan = [&](std::size_t cell, const double origin[3]) __attribute__((always_inline)) {
       const std::uint64_t start = uniform_rooms ? cell * base_room : slots[cell].start;
-      const kernels::CoarseMembers m =
-          coarse_of(start, uniform_rooms ? base_room : slots[cell].room);
+      const kernels::CoarseMembers m = coarse_of(start);
       const std::uint32_t end = count[cell];
+      constexpr std::size_t tile = kernels::coarse_tile;
       for (std::uint32_t first = 0; first < end; first += 32) {
         const std::uint32_t n = std::min<std::uint32_t>(end - first, 32);
-        const kernels::CoarseMembers part = {m.x + first, m.y + first, m.z + first,
-                                             m.bounding + first};
+        const kernels::CoarseMembers part = {m.tiles + kernels::coarse_place(first)};
         std::uint32_t meet = nearest_image ? (n == 32 ? ~0u : (1u << n) - 1)  // tested below
                                            : meet_of(part, n, origin, trial_reach, scale);
         for (; meet != 0; meet &= meet - 1) {
           const std::uint32_t k = first + std::uint32_t(__builtin_ctz(meet));
+          const double* row = m.tiles + kernels::coarse_place(k);
           Held& c = held[holding];
-          c.r[0] = m.x[k] - origin[0];
-          c.r[1] = m.y[k] - origin[1];
-          c.r[2] = m.z[k] - origin[2];
+          c.r[0] = row[0] - origin[0];
+          c.r[1] = row[tile] - origin[1];
+          c.r[2] = row[2 * tile] - origin[2];
           if (nearest_image) geometry.minimum_image(c.r);
           c.rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
-          c.bounding = m.bounding[k];
+          c.bounding = row[3 * tile];
           const double limit = trial_reach + scale * c.bounding;
           if (c.rr >= limit * limit) continue;
           c.at = start + k;
