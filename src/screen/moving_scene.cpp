@@ -472,6 +472,31 @@ struct MovingScene::Impl {
     return {coarse.data() + start * 4};
   }
 
+  // Single queries in the order of the cells (a sweep, as Monte Carlo
+  // codes make them) ask next for the cell after this one in memory, whose
+  // lines the queries so far have rarely touched: when a query's own cell is
+  // the last query's (on this thread) or the one after it, the next cell's
+  // tiles and detail lines are asked for, to be in cache when its queries
+  // come, a few queries later. Queries in any other order never ask.
+  // (Measured on the benchmark's scenes, sweep order, a harness alternating
+  // with and without: +5-7 % at packing 0.3, +2 % at 0.5.)
+  void prefetch_next_cell(std::size_t own_cell) const {
+    thread_local std::size_t last = std::size_t(-2);
+    const bool sweeping = own_cell == last || own_cell == last + 1;
+    last = own_cell;
+    if (!sweeping || own_cell + 1 >= cells()) return;
+    const std::size_t next = own_cell + 1;
+    const std::uint64_t start = uniform_rooms ? next * base_room : slots[next].start;
+    const std::uint32_t in_use = count[next];
+    const char* tiles = reinterpret_cast<const char*>(coarse.data() + start * 4);
+    // (Whole tiles: each of a tile's four rows is a line.)
+    const std::size_t tile_bytes = 4 * kernels::coarse_tile * sizeof(double);
+    const std::size_t bytes =
+        (in_use + kernels::coarse_tile - 1) / kernels::coarse_tile * tile_bytes;
+    for (std::size_t at = 0; at < bytes; at += 64) __builtin_prefetch(tiles + at);
+    for (std::uint32_t k = 0; k < in_use; ++k) __builtin_prefetch(&details[start + k]);
+  }
+
   // Where a query looks: the trial's wrapped centre (and in cell space), the
   // largest reach about it, its own cell, and whether the reach spans a
   // periodic axis (then every member is taken by the minimum image). Made
@@ -966,6 +991,7 @@ std::int64_t MovingScene::overlaps(const Particle& trial, std::int64_t exclude) 
   s.check_exclude(exclude, "MovingScene::overlaps");
   const TrialSide t(trial);
   const auto search = s.near_search(trial, 1.0);
+  s.prefetch_next_cell(search.own_cell);
   for (Cells part : {Cells::own, Cells::others}) {
     pending.clear();
     const std::int64_t decided = prefilter_trial(s, t, search, 0, exclude, pending, part);
