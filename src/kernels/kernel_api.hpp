@@ -101,9 +101,10 @@ using OverlapKernel = void (*)(const PairSpan<In>& in, const OverlapSpan& out, s
 // the members' centres along x, y and z and their bounding radii, and a
 // cell's room is a whole number of tiles (the kernels read whole registers
 // of a row). A cell of up to eight members is then four adjacent cache
-// lines, not four lines a room apart (the rows of the whole room one after
-// the other, as before): at packing 0.3, where a query is a sixth memory
-// traffic, single queries measured 5-10 % faster with the tiles.
+// lines, not four lines a room apart (as with the rows of the whole room
+// one after the other): single queries in sweep order at packing 0.3
+// measured 2-7 % faster with the tiles (the benchmark and a harness, each
+// alternating with the rows).
 inline constexpr std::uint32_t coarse_tile = 8;
 struct CoarseMembers {
   const double* tiles;
