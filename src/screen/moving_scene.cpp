@@ -472,14 +472,15 @@ struct MovingScene::Impl {
     return {coarse.data() + start * 4};
   }
 
-  // Single queries in the order of the cells (a sweep, as Monte Carlo
-  // codes make them) ask next for the cell after this one in memory, whose
-  // lines the queries so far have rarely touched: when a query's own cell is
-  // the last query's (on this thread) or the one after it, the next cell's
-  // tiles and detail lines are asked for, to be in cache when its queries
-  // come, a few queries later. Queries in any other order never ask.
-  // (Measured on the benchmark's scenes, sweep order, a harness alternating
-  // with and without: +5-7 % at packing 0.3, +2 % at 0.5.)
+  // Single overlap queries (overlaps()) in the order of the cells (a sweep,
+  // as Monte Carlo codes make them) ask next for the cell after this one in
+  // memory, whose lines the queries so far have rarely touched: when a
+  // query's own cell is the last query's (on this thread) or the one after
+  // it, the next cell's tiles and detail lines are asked for, to be in cache
+  // when its queries come, a few queries later. Queries in any other order
+  // never ask. (Measured on the benchmark's scenes, sweep order, a harness
+  // alternating with and without: +4-7 % at packing 0.3, +2 % at 0.5.
+  // neighbors() does not ask: not measured.)
   void prefetch_next_cell(std::size_t own_cell) const {
     thread_local std::size_t last = std::size_t(-2);
     const bool sweeping = own_cell == last || own_cell == last + 1;
