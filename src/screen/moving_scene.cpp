@@ -32,8 +32,11 @@ namespace {
 // reads it from cache, not from the particle store's arrays in the order of the indices).
 struct alignas(64) Detail {
   double q[6];
-  double inscribed, sphere;
+  double inscribed;
+  std::uint32_t index;
+  std::uint32_t sphere;  // 1: a sphere, of radius sqrt(q[0])
 };
+static_assert(sizeof(Detail) == 64, "a member's detail is one cache line");
 
 // Undecided pairs of a single query solved together: a few SIMD blocks, so
 // that a query that meets an overlap early stops early.
@@ -106,7 +109,6 @@ struct MovingScene::Impl {
   std::vector<double> coarse;  // per cell, from 4 start: its tiles (kernels::CoarseMembers)
   kernels::BoundingKernel bounding_spheres_meet = nullptr;  // of the scene's instruction set
   std::vector<Detail> details;                              // per slot
-  std::vector<std::uint32_t> members;                       // per slot: particle indices
   std::vector<CellSlots> slots;                             // per cell
   std::vector<std::uint32_t> count;                         // per cell: slots in use
   bool uniform_rooms = true;                                // every cell's room base_room
@@ -183,8 +185,9 @@ struct MovingScene::Impl {
     Detail& d = details[at];
     for (int k = 0; k < 6; ++k) d.q[k] = store.q(k)[i];
     d.inscribed = store.inscribed_radius()[i];
-    d.sphere = store.sphere_radius()[i];
-    members[at] = std::uint32_t(i);
+    const double sphere = store.sphere_radius()[i];
+    d.sphere = sphere > 0 && std::sqrt(d.q[0]) == sphere;
+    d.index = std::uint32_t(i);
     where[i] = at;
   }
 
@@ -210,8 +213,7 @@ struct MovingScene::Impl {
       for (std::size_t d = 0; d < 4; ++d)
         to[d * kernels::coarse_tile] = from[d * kernels::coarse_tile];
       details[at] = details[last];
-      members[at] = members[last];
-      where[members[at]] = at;  // (its home is this cell already)
+      where[details[at].index] = at;  // (its home is this cell already)
     }
     --in_use;
   }
@@ -396,7 +398,6 @@ struct MovingScene::Impl {
     }
     screen::assign_in_huge_pages(coarse, std::size_t(total) * 4, 0.0);
     screen::assign_in_huge_pages(details, std::size_t(total), Detail{});
-    screen::assign_in_huge_pages(members, std::size_t(total), 0u);
     screen::assign_in_huge_pages(where, n, std::uint64_t(0));
     home.assign(n, 0);
     for (std::size_t i = 0; i < n; ++i) occupy(i, cell[i]);
@@ -497,13 +498,6 @@ struct MovingScene::Impl {
         (in_use + kernels::coarse_tile - 1) / kernels::coarse_tile * tile_bytes;
     for (std::size_t at = 0; at < bytes; at += 64) __builtin_prefetch(tiles + at);
     for (std::uint32_t k = 0; k < in_use; ++k) __builtin_prefetch(&details[start + k]);
-    // (And their indices: a member met is named by its index first.)
-    if (in_use > 0) {
-      const char* from = reinterpret_cast<const char*>(&members[start]);
-      const char* to = reinterpret_cast<const char*>(&members[start + in_use - 1]);
-      for (; from <= to; from += 64) __builtin_prefetch(from);
-      __builtin_prefetch(to);
-    }
   }
 
   // Where a query looks: the trial's wrapped centre (and in cell space), the
@@ -586,9 +580,9 @@ struct MovingScene::Impl {
     auto visit_held = [&]() __attribute__((always_inline)) {
       for (std::size_t h = 0; h < holding; ++h) {
         const Held& c = held[h];
-        const std::uint32_t index = members[c.at];
-        if (std::int64_t(index) == exclude) continue;
-        if (!visit(index, details[c.at], c.bounding, c.r, c.rr)) return false;
+        const Detail& d = details[c.at];
+        if (std::int64_t(d.index) == exclude) continue;
+        if (!visit(d.index, d, c.bounding, c.r, c.rr)) return false;
       }
       holding = 0;
       return true;
@@ -622,7 +616,6 @@ struct MovingScene::Impl {
           if (c.rr >= limit * limit) continue;
           c.at = start + k;
           __builtin_prefetch(&details[c.at]);
-          __builtin_prefetch(&members[c.at]);
           if (++holding == hold && !visit_held()) return false;
         }
       }
@@ -673,7 +666,7 @@ namespace {
 
 // A stored particle as the prefilters take it.
 screen::Side member_side(std::uint32_t i, const Detail& d, double bounding) {
-  return {i, bounding, d.inscribed, d.sphere, d.q};
+  return {i, bounding, d.inscribed, d.sphere ? std::sqrt(d.q[0]) : 0.0, d.q};
 }
 
 // Undecided pairs waiting for the overlap kernels, in search order, with
@@ -787,9 +780,8 @@ std::size_t MovingScene::bytes() const noexcept {
   const Impl& s = *impl_;
   return s.slots.capacity() * sizeof(CellSlots) + s.count.capacity() * sizeof(std::uint32_t) +
          s.coarse.capacity() * sizeof(double) + s.details.capacity() * sizeof(Detail) +
-         s.members.capacity() * sizeof(std::uint32_t) + s.where.capacity() * sizeof(std::uint64_t) +
-         s.home.capacity() * sizeof(std::uint32_t) + s.outside.capacity() +
-         s.stamp.capacity() * sizeof(std::uint32_t);
+         s.where.capacity() * sizeof(std::uint64_t) + s.home.capacity() * sizeof(std::uint32_t) +
+         s.outside.capacity() + s.stamp.capacity() * sizeof(std::uint32_t);
 }
 
 MovingScene::Particle MovingScene::trial(const std::array<double, 3>& centre,
@@ -831,7 +823,7 @@ std::uint32_t MovingScene::remove(std::size_t i) {
   if (i != last) {
     s.where[i] = s.where[last];
     s.home[i] = s.home[last];
-    s.members[s.where[i]] = std::uint32_t(i);
+    s.details[s.where[i]].index = std::uint32_t(i);
     s.outside[i] = s.outside[last];
   }
   s.where.pop_back();
