@@ -29,7 +29,9 @@ namespace {
 // tiles of four rows (Impl::coarse, kernels::CoarseMembers), so that a
 // register of members is tested at a time. The rest of a member, read only for the pairs the
 // bounding spheres leave, is one cache line in the order of the cells (a sweep through the scene
-// reads it from cache, not from the particle store's arrays in the order of the indices).
+// reads it from cache, not from the particle store's arrays in the order of the indices). Its
+// index is there too (a member met is one line read, not two), and whether it is a sphere, whose
+// radius is then sqrt(q[0]) exactly as the store computes it (as the screen's members keep it).
 struct alignas(64) Detail {
   double q[6];
   double inscribed;
