@@ -174,7 +174,7 @@ struct MovingScene::Impl {
   void write_slot(std::size_t cell, std::size_t slot, std::size_t i) {
     const CellSlots& c = slots[cell];
     const std::uint64_t at = c.start + slot;
-    double* row = coarse.data() + c.start * 4 + kernels::coarse_place(slot);
+    double* row = tiles_from(c.start) + kernels::coarse_place(slot);
     const double x[3] = {store.centre(0)[i], store.centre(1)[i], store.centre(2)[i]};
     double wrapped[3];
     lists.geometry.wrap(x, wrapped);
@@ -209,7 +209,7 @@ struct MovingScene::Impl {
     std::uint32_t& in_use = count[home[i]];
     const std::uint64_t last = c.start + (in_use - 1);
     if (at != last) {
-      double* block = coarse.data() + c.start * 4;
+      double* block = tiles_from(c.start);
       double* to = block + kernels::coarse_place(std::size_t(at - c.start));
       const double* from = block + kernels::coarse_place(std::size_t(last - c.start));
       for (std::size_t d = 0; d < 4; ++d)
@@ -474,6 +474,13 @@ struct MovingScene::Impl {
   kernels::CoarseMembers coarse_of(std::uint64_t start) const {
     return {coarse.data() + start * 4};
   }
+  double* tiles_from(std::uint64_t start) { return coarse.data() + start * 4; }
+
+  // A cell's first slot: from its index where every cell has the same room
+  // (see CellSlots), else as kept.
+  std::uint64_t cell_start(std::size_t cell) const {
+    return uniform_rooms ? cell * base_room : slots[cell].start;
+  }
 
   // Single overlap queries (overlaps()) in the order of the cells (a sweep,
   // as Monte Carlo codes make them) ask next for the cell after this one in
@@ -491,9 +498,9 @@ struct MovingScene::Impl {
     last = own_cell;
     if (!sweeping || own_cell + 1 >= cells()) return;
     const std::size_t next = own_cell + 1;
-    const std::uint64_t start = uniform_rooms ? next * base_room : slots[next].start;
+    const std::uint64_t start = cell_start(next);
     const std::uint32_t in_use = count[next];
-    const char* tiles = reinterpret_cast<const char*>(coarse.data() + start * 4);
+    const char* tiles = reinterpret_cast<const char*>(coarse_of(start).tiles);
     // (Whole tiles: each of a tile's four rows is a line.)
     const std::size_t tile_bytes = 4 * kernels::coarse_tile * sizeof(double);
     const std::size_t bytes =
@@ -595,7 +602,7 @@ struct MovingScene::Impl {
     // kernel (a superset), then exactly here for the few it lets through: on
     // a packing at 0.5, 7 of 128 members scanned a query meet.
     auto scan = [&](std::size_t cell, const double origin[3]) __attribute__((always_inline)) {
-      const std::uint64_t start = uniform_rooms ? cell * base_room : slots[cell].start;
+      const std::uint64_t start = cell_start(cell);
       const kernels::CoarseMembers m = coarse_of(start);
       const std::uint32_t end = count[cell];
       constexpr std::size_t tile = kernels::coarse_tile;
