@@ -131,7 +131,7 @@ std::string contact_options_help() {
 // A block's parsed columns as a batch: swapped in, without a copy (and
 // swapped back by give_back, so that the reader reuses their storage).
 void take_pairs(NumberColumns& block, PairBatch<double>& pairs) {
-  std::vector<std::vector<double>>& columns = block.columns;
+  std::vector<NumberColumns::Column>& columns = block.columns;
   for (int k = 0; k < 3; ++k) pairs.r12(k).swap(columns[std::size_t(k)]);
   for (int k = 0; k < 6; ++k) {
     pairs.q1(k).swap(columns[std::size_t(3 + k)]);

@@ -156,7 +156,7 @@ class ColumnsParser {
   NumberColumns& table() { return table_; }
   // Empties the table, keeping the line count (for the next block).
   void clear() {
-    for (std::vector<double>& column : table_.columns) column.clear();
+    for (NumberColumns::Column& column : table_.columns) column.clear();
     table_.line.clear();
   }
 
@@ -196,7 +196,7 @@ void ColumnsParser::parse(std::string_view lines) {
     first_line += piece.lines;
   }
   lines_before_ = first_line - 1;
-  for (std::vector<double>& column : table_.columns) column.resize(records);
+  for (NumberColumns::Column& column : table_.columns) column.resize(records);
   if (line_numbers_) table_.line.resize(records);
 
   // Second pass: parse each piece straight into its rows of the columns.

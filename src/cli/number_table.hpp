@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include "pwcontact/batch.hpp"
+
 namespace pwcontact::cli {
 
 // A text input: a file, or standard input for "-".
@@ -41,9 +43,11 @@ class TextInput {
   bool owns_descriptor_ = false;
 };
 
-// Column k holds the k-th number of every record, records in input order.
+// Column k holds the k-th number of every record, records in input order,
+// each on a cache line as PairBatch's columns (they are swapped into one).
 struct NumberColumns {
-  std::vector<std::vector<double>> columns;
+  using Column = PairBatch<double>::Column;
+  std::vector<Column> columns;
   std::vector<std::size_t> line;  // 1-based line of every record, when asked for
   std::size_t records() const { return columns.empty() ? 0 : columns.front().size(); }
 };
