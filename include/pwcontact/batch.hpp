@@ -132,9 +132,10 @@ inline unsigned next_column_stagger() noexcept {
 //   32 KiB 8-way L1 cache, more than it has ways.
 // Measured on Zen 4, 1M random pairs streamed from memory, one thread, the
 // double and mixed-precision full answers (mu^2 only): columns 16 bytes off
-// a line and at one offset modulo 4 KiB, as std::vector leaves them, 28.3-28.9
-// and 31.5-32.8 ms; on lines, 25.2-25.5 and 24.2-24.5 ms; on lines and
-// staggered, 23.9-24.2 and 23.3-23.6 ms.
+// a line and at one offset modulo 4 KiB, as std::vector leaves them,
+// 28.3-28.9 and 31.5-32.8 ms; on lines, 25.2-25.5 and 24.2-24.5 ms; on lines
+// and a line apart, 23.7-26.4 and 23.3-23.6 ms (README, "Columns on cache
+// lines").
 template <class T>
 struct CacheLineAllocator {
   using value_type = T;

@@ -155,8 +155,19 @@ struct StateByPosition {
 template <class Arch, class T, class In>
 void pack_unfinished(const PairSpan<In>& in, std::size_t n, const Status* status,
                      const StateByPosition<T>& state, FullKept<T>& kept) {
-  for (std::size_t i = 0; i < n; ++i) {
-    if (status[i] != needs_fallback || !(state.lambda[i] == state.lambda[i])) continue;
+  // The lanes are found with memchr: on random pairs, where the first pass
+  // finishes all but ~0.1 % of the lanes, the byte-by-byte scan it replaces
+  // cost ~2.5 % of a cold solve and ~4 % of a warm-started one (1M pairs
+  // solved from cache 2,048 at a time, one thread).
+  static_assert(sizeof(Status) == 1, "statuses are searched for as bytes");
+  const unsigned char* const first = reinterpret_cast<const unsigned char*>(status);
+  const unsigned char* const end = first + n;
+  for (const unsigned char* at = first; at < end; ++at) {
+    at = static_cast<const unsigned char*>(
+        __builtin_memchr(at, int(std::uint8_t(needs_fallback)), std::size_t(end - at)));
+    if (at == nullptr) break;
+    const std::size_t i = std::size_t(at - first);
+    if (!(state.lambda[i] == state.lambda[i])) continue;
     In v[pair_components];
     for (int k = 0; k < pair_components; ++k) v[k] = element(in, k, i);
     static constexpr int diagonals[6] = {3, 6, 8, 9, 12, 14};
