@@ -260,6 +260,13 @@ PWCONTACT_INLINE Convergence<B> convergence_test(
   return {corrected, bounded, gain, newton_lambda};
 }
 
+// Whether a first pass starts from the caller's lambda (T lanes on T pairs
+// only: float lanes on double pairs take the radial guess).
+template <class T, class In>
+PWCONTACT_INLINE bool warm_start(const PairSpan<In>& in) {
+  return std::is_same<T, In>::value && in.lambda_start != nullptr;
+}
+
 // A block of U groups of lanes, solved for the full answer.
 template <class Arch, class T>
 class FullBlock : public LaneGroups<Arch, T> {
@@ -291,18 +298,24 @@ class FullBlock : public LaneGroups<Arch, T> {
       const PairLanes<B>& p = pair_[u];
       const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
       const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
-      const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
-      B guess = w1 / (w1 + w2);
       // A warm start (a previous solve's lambda) where one is given and
-      // inside (0, 1); the radial guess elsewhere (NaN: none). The checks are
-      // the cold start's whichever: those of the mixed-precision double block
-      // (the entries' range, without the slopes) let lanes of forms with
-      // entries near 1e-300 through to answers 30 % wrong.
+      // inside (0, 1); the radial guess elsewhere (NaN: none), computed only
+      // where some lane needs it (its square roots and division measured
+      // ~3 % of a warm-started solve). The checks are the cold start's
+      // whichever: those of the mixed-precision double block (the entries'
+      // range, without the slopes) let lanes of forms with entries near
+      // 1e-300 through to answers 30 % wrong.
+      B guess;
       if constexpr (std::is_same<T, In>::value) {
-        if (in.lambda_start) {
+        if (warm_start<T>(in)) {
           const B given = B::load_unaligned(in.lambda_start + from + std::size_t(u) * W);
-          guess = xsimd::select((given > B(0)) & (given < B(1)), given, guess);
+          const M warm = (given > B(0)) & (given < B(1));
+          guess = xsimd::all(warm) ? given : xsimd::select(warm, given, radial_guess(s1, s2));
+        } else {
+          guess = radial_guess(s1, s2);
         }
+      } else {
+        guess = radial_guess(s1, s2);
       }
       lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
       lo_[u] = B(0);
@@ -478,6 +491,13 @@ class FullBlock : public LaneGroups<Arch, T> {
     return xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
   }
 
+  // The radial guess from s_i = r^T Qi^-1 r: exact for spheres (see
+  // initial_guess).
+  PWCONTACT_INLINE static B radial_guess(const B& s1, const B& s2) {
+    const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
+    return w1 / (w1 + w2);
+  }
+
   // Hands over the lanes of group u that are not finished (`unfinished`):
   // kept for the next pass, left by chunk position for pack_unfinished, or
   // left to the reference path, as `handoff` says.
@@ -636,7 +656,7 @@ void solve_full(const PairSpan<In>& in, const ResultSpan<Out>& out, std::size_t 
   // A warm start (lambda_start given) is a Newton step or so from the
   // answer: one step and the check (lanes that fail it go on in the later
   // passes, one evaluation each).
-  const bool warm = std::is_same<T, In>::value && in.lambda_start != nullptr;
+  const bool warm = warm_start<T>(in);
   const int first =
       automatic ? (warm ? 2 : first_pass_evaluations<T>(settings)) : settings.iterations;
   const Handoff handoff =
