@@ -113,10 +113,11 @@ struct OverlapOutputs {
 };
 
 namespace detail {
-// Which of 16 cache lines the next large column starts on (CacheLineAllocator).
+// The large columns' offsets in cache lines, taken in turn (CacheLineAllocator).
+inline constexpr unsigned column_staggers = 16;
 inline unsigned next_column_stagger() noexcept {
   static std::atomic<unsigned> next{0};
-  return next.fetch_add(1, std::memory_order_relaxed) % 16;
+  return next.fetch_add(1, std::memory_order_relaxed) % column_staggers;
 }
 }  // namespace detail
 
@@ -148,7 +149,8 @@ struct CacheLineAllocator {
   CacheLineAllocator(const CacheLineAllocator<U>&) noexcept {}
 
   T* allocate(std::size_t n) {
-    if (n > (std::size_t(-1) - 16 * line) / sizeof(T)) throw std::bad_array_new_length();
+    if (n > (std::size_t(-1) - detail::column_staggers * line) / sizeof(T))
+      throw std::bad_array_new_length();
     const std::size_t bytes = n * sizeof(T);
     if (bytes < staggered_from) return static_cast<T*>(::operator new(bytes, alignment));
     // The lines skipped, kept in the last bytes before the column.

@@ -298,25 +298,13 @@ class FullBlock : public LaneGroups<Arch, T> {
       const PairLanes<B>& p = pair_[u];
       const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
       const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
-      // A warm start (a previous solve's lambda) where one is given and
-      // inside (0, 1); the radial guess elsewhere (NaN: none), computed only
-      // where some lane needs it (its square roots and division measured
+      // A warm start (a previous solve's lambda) where one is given
+      // (first_guess; the radial guess's square roots and division measured
       // ~3 % of a warm-started solve). The checks are the cold start's
       // whichever: those of the mixed-precision double block (the entries'
       // range, without the slopes) let lanes of forms with entries near
       // 1e-300 through to answers 30 % wrong.
-      B guess;
-      if constexpr (std::is_same<T, In>::value) {
-        if (warm_start<T>(in)) {
-          const B given = B::load_unaligned(in.lambda_start + from + std::size_t(u) * W);
-          const M warm = (given > B(0)) & (given < B(1));
-          guess = xsimd::all(warm) ? given : xsimd::select(warm, given, radial_guess(s1, s2));
-        } else {
-          guess = radial_guess(s1, s2);
-        }
-      } else {
-        guess = radial_guess(s1, s2);
-      }
+      const B guess = first_guess(in, from + std::size_t(u) * W, s1, s2);
       lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
       lo_[u] = B(0);
       hi_[u] = B(1);
@@ -496,6 +484,22 @@ class FullBlock : public LaneGroups<Arch, T> {
   PWCONTACT_INLINE static B radial_guess(const B& s1, const B& s2) {
     const B w1 = xsimd::sqrt(s2), w2 = xsimd::sqrt(s1);
     return w1 / (w1 + w2);
+  }
+
+  // Where the lanes of pairs [at, at + W) start: the caller's lambda where one
+  // is given (warm_start) and inside (0, 1), the radial guess elsewhere,
+  // computed only when some lane needs it.
+  template <class In>
+  PWCONTACT_INLINE static B first_guess(const PairSpan<In>& in, std::size_t at, const B& s1,
+                                        const B& s2) {
+    if constexpr (std::is_same<T, In>::value) {
+      if (warm_start<T>(in)) {
+        const B given = B::load_unaligned(in.lambda_start + at);
+        const M warm = (given > B(0)) & (given < B(1));
+        return xsimd::all(warm) ? given : xsimd::select(warm, given, radial_guess(s1, s2));
+      }
+    }
+    return radial_guess(s1, s2);
   }
 
   // Hands over the lanes of group u that are not finished (`unfinished`):
