@@ -397,6 +397,56 @@ TEST(SkinNeighborList, PairsTakenInTheOrderOfSpaceKeepTheirOwnLambdaAndComeOutSo
   }
 }
 
+// After a rebuild the pairs that were listed before too start from the
+// lambda of their last solve, not from the radial guess: the first kept step
+// after a rebuild takes about the warm steps' evaluations (2.0 here, one
+// Newton step and the check) where the radial guess takes 3.05, and its
+// answers are the fresh screen's. A particle moved far forces the rebuild;
+// its pairs are new and start cold. A rebuild with a particle more (other
+// indices) takes no lambda over and is still the fresh screen.
+TEST(SkinNeighborList, TheFirstKeptStepAfterARebuildStartsFromTheLambdasBefore) {
+  std::mt19937_64 engine(50);
+  Moving m = random_scene(4000, 16, 12, true);
+  pwcontact::SkinOptions options;
+  options.cutoff = 1.3;
+  options.skin = 0.2;
+  pwcontact::SkinNeighborList list(options);
+  pwcontact::ScreenedPairs pairs;
+  std::vector<double> evaluations;  // of each kept step
+  auto step = [&](bool rebuilt, const std::string& where) {
+    const ParticleStore s = m.store();
+    const pwcontact::SkinReport r = list.update(s, m.box, pairs);
+    EXPECT_EQ(r.rebuilt, rebuilt) << where;
+    expect_same(pairs, s, m.box, options.cutoff, where);
+    if (!r.rebuilt) {
+      EXPECT_GT(r.solved, 1000u) << where;
+      evaluations.push_back(r.mean_evaluations);
+    }
+    m.move(engine, 1e-4, 1e-4);
+  };
+  step(true, "the first rebuild");
+  step(false, "the first kept step (cold)");
+  step(false, "a warm step");
+  m.centre[17][0] += 5;  // beyond any skin
+  step(true, "the rebuild forced by a particle moved far");
+  step(false, "the first kept step after it");
+  m.centre.push_back({1, 2, 3});
+  m.axes.push_back({0.3, 0.2, 0.25});
+  m.orientation.push_back({1, 0, 0, 0});
+  step(true, "the rebuild for a particle more");
+  step(false, "the first kept step after it (cold: other indices)");
+  std::printf(
+      "[ measured ] evaluations per pair: first kept step %.3f, warm step %.3f, first "
+      "after a rebuild %.3f, after a rebuild with a particle more %.3f\n",
+      evaluations[0], evaluations[1], evaluations[2], evaluations[3]);
+  if (!pwtest::on_portable_target()) {
+    EXPECT_GT(evaluations[0], 2.7);  // (the radial guess: the test tells the two apart)
+    EXPECT_LT(evaluations[1], 2.3);
+    EXPECT_LT(evaluations[2], 2.3);
+    EXPECT_GT(evaluations[3], 2.7);
+  }
+}
+
 TEST(WarmStart, AnyStartingLambdaGivesTheReferenceAnswer) {
   // Starts at the exact lambda, near it, at the ends, outside (0, 1) and NaN:
   // the answer is the reference path's whichever.

@@ -27,10 +27,13 @@
 // sqrt(2) (a^2 - c^2) theta.)
 //
 // Warm start: the pairs of a kept list are solved again from the lambda
-// each had at the last step (the first kept step after a rebuild from the
-// radial guess: the screen keeps no lambda) (PairBatchView::lambda_start), which the
+// each had at the last step (PairBatchView::lambda_start), which the
 // double-precision kernels start their Newton iteration from: one step and
 // the convergence check, where a cold start takes three and the check. The
+// first kept step after a rebuild starts the pairs that the list before it
+// held too from the lambda of their last solve (when the particle count is
+// unchanged: the same indices), the others from the radial guess (the
+// screen keeps no lambda). The
 // pairs are gathered and solved a chunk at a time over the threads (a chunk
 // stays in cache between the gather and the solve), in an order along the
 // cells of space made at each rebuild (a pair's second particle is then

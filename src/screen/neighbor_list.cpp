@@ -148,6 +148,29 @@ std::vector<std::uint32_t> spatial_ranks(const ParticleStore& particles,
   return places_by_key(cell, cells[0] * cells[1] * cells[2]);
 }
 
+// The pairs of a new list that the list before it held too (the same
+// particle count: the same indices) start their first kept step from the
+// lambda of their last solve, not from the radial guess: the scene has
+// moved a little since (the skin's worth at most), and one Newton step and
+// the convergence check then answer most of them, as at any kept step.
+// Both lists are sorted by (i, j): a merge. A lambda is only a start (any
+// start gives the reference answer), so a pair whose particles have changed
+// shape since is no risk.
+void carry_lambda(const std::vector<std::uint32_t>& old_first,
+                  const std::vector<std::uint32_t>& old_second,
+                  const std::vector<std::uint32_t>& old_place_of,
+                  const std::vector<double>& old_lambda, const ScreenedPairs& listed,
+                  const std::vector<std::uint32_t>& place_of, std::vector<double>& lambda) {
+  const std::size_t old = old_first.size();
+  std::size_t o = 0;
+  for (std::size_t k = 0; k < listed.size() && o < old; ++k) {
+    const std::uint32_t i = listed.i[k], j = listed.j[k];
+    while (o < old && (old_first[o] < i || (old_first[o] == i && old_second[o] < j))) ++o;
+    if (o < old && old_first[o] == i && old_second[o] == j)
+      lambda[place_of[k]] = old_lambda[old_place_of[o]];
+  }
+}
+
 }  // namespace
 
 SkinNeighborList::SkinNeighborList(const SkinOptions& options) : options_(options) {
@@ -226,6 +249,8 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
       near_second[place_of[k]] = rank[listed_.j[k]];
     }
     std::vector<double> lambda(pairs, std::numeric_limits<double>::quiet_NaN());
+    if (options_.warm_start && rebuilds_ > 0 && inscribed_.size() == n)
+      carry_lambda(first_, second_, place_of_, lambda_, listed_, place_of, lambda);
     std::vector<Answer> answers(pairs, Answer{0, 0, Status::ok});
     std::vector<double> centre[3], q[6];
     for (int k = 0; k < 3; ++k) centre[k] = particles.centre(k);
