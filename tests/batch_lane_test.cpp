@@ -534,6 +534,30 @@ void expect_strided_views_match_columns(Isa isa) {
     packed.r12_stride = 3;
     packed.q1_stride = packed.q2_stride = 6;
     expect_same_outputs(solve_all(packed, options), expected, name + ", packed rows of 3 and 6");
+    // Rows as far apart, whose components are not side by side in their
+    // order: each row's numbers backwards (numpy's a[:, ::-1] of a C-ordered
+    // array), and r12 = (x, x, x) from one number a row (np.broadcast_to of a
+    // column to (N, 3): a column step of 0). Taken for packed rows, the
+    // first gave wrong answers with status ok.
+    std::vector<T> r_back(3 * n), a_back(6 * n), b_back(6 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t k = 0; k < 3; ++k) r_back[3 * i + 2 - k] = rows[i].r12[k];
+      for (std::size_t k = 0; k < 6; ++k)
+        a_back[6 * i + 5 - k] = rows[i].q1[k], b_back[6 * i + 5 - k] = rows[i].q2[k];
+    }
+    pwcontact::PairBatchView<T> backwards = packed;
+    for (int k = 0; k < 3; ++k) backwards.r12[k] = r_back.data() + 2 - k;
+    for (int k = 0; k < 6; ++k) backwards.q1[k] = a_back.data() + 5 - k;
+    for (int k = 0; k < 6; ++k) backwards.q2[k] = b_back.data() + 5 - k;
+    expect_same_outputs(solve_all(backwards, options), expected,
+                        name + ", packed rows, each row's numbers backwards");
+    std::vector<Pair<T>> diagonal = rows;  // r12 = (x, x, x)
+    for (Pair<T>& p : diagonal) p.r12 = {p.r12[0], p.r12[0], p.r12[0]};
+    pwcontact::PairBatchView<T> one_column = packed;
+    for (int k = 0; k < 3; ++k) one_column.r12[k] = r.data();
+    expect_same_outputs(solve_all(one_column, options),
+                        solve_all(make_batch(diagonal).view(), options),
+                        name + ", r12 one number a row broadcast to three");
     pwcontact::PairBatchView<T> broadcast = shared_columns.view();
     for (int k = 0; k < 6; ++k) broadcast.q2[k] = &rows[0].q2[std::size_t(k)];
     broadcast.q2_stride = 0;

@@ -143,6 +143,31 @@ def test_rows_read_backwards_and_odd_strides_give_the_bits_of_copies(reference_p
     assert np.array_equal(a.mu2, b.mu2, equal_nan=True) and np.array_equal(a.status, b.status)
 
 
+@pytest.mark.parametrize("isa", pw.supported_isas())
+def test_rows_whose_columns_are_reversed_or_broadcast_give_the_bits_of_copies(reference_pairs, isa):
+    # Rows 3 or 6 numbers apart whose columns are not side by side in their
+    # order: a C-ordered array's columns reversed (strides (24, -8)), and one
+    # column broadcast to (N, 3) (strides (24, 0)). Read as packed rows, the
+    # first gave wrong mu2 with status ok from 24 pairs on.
+    r12, q1, q2, _, _ = reference_pairs["random"]
+    zyx = np.ascontiguousarray(r12[:, ::-1])
+    q1_back = np.ascontiguousarray(q1[:, ::-1])
+    reversed_views = (zyx[:, ::-1], q1_back[:, ::-1], q2)
+    assert reversed_views[0].strides == (24, -8) and reversed_views[1].strides == (48, -8)
+    got = pw.contact_function(*reversed_views, isa=isa, outputs=("mu2", "lambda"))
+    want = pw.contact_function(r12, q1, q2, isa=isa, outputs=("mu2", "lambda"))
+    assert np.array_equal(got.mu2, want.mu2) and np.array_equal(got.lambda_, want.lambda_)
+    assert np.array_equal(got.status, want.status)
+    o_got, o_want = pw.overlap(*reversed_views, isa=isa), pw.overlap(r12, q1, q2, isa=isa)
+    assert np.array_equal(o_got.overlap, o_want.overlap) and np.array_equal(o_got.status, o_want.status)
+    column = np.ascontiguousarray(np.repeat(r12[:, :1], 3, axis=1))  # (x, x, x) rows
+    broadcast = np.broadcast_to(column[:, :1], (len(r12), 3))
+    assert broadcast.strides[1] == 0
+    b = pw.contact_function(broadcast, q1, q2, isa=isa)
+    c = pw.contact_function(column, q1, q2, isa=isa)
+    assert np.array_equal(b.mu2, c.mu2) and np.array_equal(b.status, c.status)
+
+
 def test_integer_input_is_converted():
     r = pw.contact_function(np.array([[3, 0, 0]]), np.array([1, 0, 0, 1, 0, 1]), np.array([1, 0, 0, 1, 0, 1]))
     assert r.mu2[0] == pytest.approx(2.25, rel=1e-15)

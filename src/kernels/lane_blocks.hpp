@@ -383,14 +383,30 @@ PWCONTACT_INLINE void load_rows_avx512(const double* first, __m512d* out) {
   }
 }
 
+// Whether components [first, first + G) (one of r12, q1, q2) are packed
+// rows of G numbers in their order: G numbers from one pair to the next, and
+// component first + c at c numbers past component first. A stride of G
+// alone is not enough: the columns of a C-ordered array read backwards
+// (numpy's a[:, ::-1]) or one column broadcast to G (np.broadcast_to) have
+// it too, with their components elsewhere in the row.
+template <int G, class T>
+PWCONTACT_INLINE bool packed_rows(const PairSpan<T>& in, int first) {
+  if (component_stride(in, first) != G) return false;
+  const T* row = component(in, first);
+  for (int c = 1; c < G; ++c)
+    if (component(in, first + c) != row + c) return false;
+  return true;
+}
+
 // Components [first, first + G) of pairs i, i + 1, ... (one of r12, q1,
 // q2) into `out`: by shuffles where the pairs are packed rows of G doubles
-// and the lanes are AVX-512's 8 doubles, else component by component.
+// (packed_rows) and the lanes are AVX-512's 8 doubles, else component by
+// component.
 template <class B, int G, class T>
 PWCONTACT_INLINE void load_group(const PairSpan<T>& in, int first, std::size_t i, B* out) {
   using Arch = typename B::arch_type;
   if constexpr (is_avx512<Arch> && std::is_same<T, double>::value) {
-    if (component_stride(in, first) == G) {
+    if (packed_rows<G>(in, first)) {
       __m512d v[G];
       load_rows_avx512<G>(component(in, first) + std::ptrdiff_t(i) * G, v);
       for (int c = 0; c < G; ++c) out[c] = v[c];
