@@ -676,6 +676,38 @@ TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
     EXPECT_NE(message(bad).find(atom_line + expected), std::string::npos)
         << replacement << ": " << message(bad);
   }
+  // The header's box and count lines, malformed, name their line: a line
+  // that begins with a word is one of them by its keywords, not the name
+  // of a section (a tilt line "nan 0 0 xy xz yz" was so skipped, and the
+  // box read as orthogonal).
+  std::size_t tilts = 0, bounds = 0, count = 0;
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    if (lines[k].find("xy xz yz") != std::string::npos) tilts = k;
+    if (lines[k].find("ylo yhi") != std::string::npos) bounds = k;
+    if (lines[k].find(" atoms") != std::string::npos) count = k;
+  }
+  ASSERT_GT(tilts, 0u);
+  const std::pair<std::size_t, const char*> bad_header[][2] = {
+      {{tilts, "nan 0 0 xy xz yz"}, {tilts, "a tilt 'nan' is not a finite number"}},
+      {{tilts, "abc 0 0 xy xz yz"}, {tilts, "a tilt 'abc' is not a finite number"}},
+      {{tilts, "inf 0 0 xy xz yz"}, {tilts, "a tilt 'inf' is not a finite number"}},
+      {{tilts, "4.0 0 xy xz yz"},
+       {tilts, "a header line 'xy xz yz' has 3 numbers before its keywords, this one 2"}},
+      {{tilts, "1 4.0 0 0 xy xz yz"},
+       {tilts, "a header line 'xy xz yz' has 3 numbers before its keywords, this one 4"}},
+      {{tilts, "2.0 0 0 XY XZ YZ"},
+       {tilts, "the header keywords 'xy xz yz' are written in another case"}},
+      {{bounds, "nan 10 ylo yhi"}, {bounds, "ylo 'nan' is not a finite number"}},
+      {{bounds, "0 ylo yhi"},
+       {bounds, "a header line 'ylo yhi' has 2 numbers before its keywords, this one 1"}},
+      {{count, "fifty atoms"}, {count, "the atom count 'fifty' is not a whole number"}},
+  };
+  for (const auto& [change, expected] : bad_header) {
+    const std::string bad = write_with("header.data", change.first, change.second);
+    EXPECT_NE(message(bad).find(":" + std::to_string(expected.first + 1) + ": " + expected.second),
+              std::string::npos)
+        << change.second << ": " << message(bad);
+  }
   // Image flags of any sign are integers.
   const Scene imaged = pwcontact::read_lammps_data(
       write_with("imaged.data", atoms + 2,

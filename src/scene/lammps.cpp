@@ -101,6 +101,63 @@ bool starts_section(const std::string& line) {
   return !w.empty() && ((w[0][0] >= 'A' && w[0][0] <= 'Z') || (w[0][0] >= 'a' && w[0][0] <= 'z'));
 }
 
+// The header lines a data file's scene is read from, known by their last
+// words (LAMMPS's keywords): their kind, how many numbers come before the
+// keywords, and for the box's bounds the axis.
+constexpr const char* bound_names[3][2] = {{"xlo", "xhi"}, {"ylo", "yhi"}, {"zlo", "zhi"}};
+
+struct HeaderKeyword {
+  enum Kind { atoms, ellipsoids, atom_types, tilts, bounds } kind = atoms;
+  const char* name = nullptr;  // null: not one of these lines
+  int words = 0, numbers = 0, axis = 0;
+};
+
+bool same_letters(std::string_view a, std::string_view b, bool any_case) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    const char x = a[k], y = b[k];
+    const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? char(c - 'A' + 'a') : c; };
+    if (any_case ? lower(x) != lower(y) : x != y) return false;
+  }
+  return true;
+}
+
+// Which of the header lines `w` is (a line whose keywords are written in
+// another case is refused, naming it).
+HeaderKeyword header_keyword(const std::vector<std::string_view>& w, const Lines& lines) {
+  struct Known {
+    HeaderKeyword::Kind kind;
+    const char* name;
+    std::vector<std::string_view> keywords;
+    int numbers, axis;
+  };
+  static const Known known[] = {
+      {HeaderKeyword::atoms, "atoms", {"atoms"}, 1, 0},
+      {HeaderKeyword::ellipsoids, "ellipsoids", {"ellipsoids"}, 1, 0},
+      {HeaderKeyword::atom_types, "atom types", {"atom", "types"}, 1, 0},
+      {HeaderKeyword::tilts, "xy xz yz", {"xy", "xz", "yz"}, 3, 0},
+      {HeaderKeyword::bounds, "xlo xhi", {"xlo", "xhi"}, 2, 0},
+      {HeaderKeyword::bounds, "ylo yhi", {"ylo", "yhi"}, 2, 1},
+      {HeaderKeyword::bounds, "zlo zhi", {"zlo", "zhi"}, 2, 2},
+  };
+  for (const Known& k : known) {
+    const std::size_t n = k.keywords.size();
+    if (w.size() < n) continue;
+    bool exact = true, any_case = true;
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::string_view word = w[w.size() - n + j];
+      exact = exact && same_letters(word, k.keywords[j], false);
+      any_case = any_case && same_letters(word, k.keywords[j], true);
+    }
+    // ("Atoms" alone is the section's name, not the count's keyword.)
+    if (!exact && any_case && w.size() > n)
+      lines.fail(std::string("the header keywords '") + k.name +
+                 "' are written in another case (LAMMPS's are lower case)");
+    if (exact) return {k.kind, k.name, int(n), k.numbers, k.axis};
+  }
+  return {};
+}
+
 // A particle of a LAMMPS scene before it is stored.
 struct Atom {
   std::uint64_t id;
@@ -146,27 +203,43 @@ Scene read_lammps_data(const std::string& path) {
   std::uint32_t types = 1;
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0}, tilt[3] = {0, 0, 0};
   bool have[3] = {false, false, false};
-  // Header: until the first section.
-  while (lines.next(line) && !starts_section(line)) {
+  // Header: until the first section. A line is known by its keywords, its
+  // last words, before anything else: a line of the box or a count that
+  // begins with a word (nan, inf, a typo) is refused for it, not taken for
+  // the name of a section (which skipped it: a tilt line so written left
+  // the box orthogonal), and so is one with a number missing or too many.
+  // Keywords in another case are refused as LAMMPS refuses them. Other
+  // header lines (bonds, angles, their types, ...) are not needed here and
+  // are passed over.
+  while (lines.next(line)) {
     const std::vector<std::string_view> w = words(line);
     if (w.empty()) continue;
-    if (w.size() == 2 && w[1] == "atoms")
-      atoms_count = whole(w[0], lines, "the atom count");
-    else if (w.size() == 2 && w[1] == "ellipsoids")
-      ellipsoids_count = whole(w[0], lines, "the ellipsoid count");
-    else if (w.size() == 3 && w[1] == "atom" && w[2] == "types")
-      types = std::uint32_t(whole(w[0], lines, "the atom type count"));
-    else if (w.size() == 6 && w[3] == "xy" && w[4] == "xz" && w[5] == "yz")
-      for (int k = 0; k < 3; ++k) tilt[k] = number(w[std::size_t(k)], lines, "a tilt");
-    else
-      for (int k = 0; k < 3; ++k) {
-        const char* names[3][2] = {{"xlo", "xhi"}, {"ylo", "yhi"}, {"zlo", "zhi"}};
-        if (w.size() == 4 && w[2] == names[k][0] && w[3] == names[k][1]) {
-          lo[k] = number(w[0], lines, names[k][0]);
-          hi[k] = number(w[1], lines, names[k][1]);
-          have[k] = true;
-        }
+    const HeaderKeyword key = header_keyword(w, lines);
+    if (!key.name && starts_section(line)) break;
+    if (!key.name) continue;
+    if (w.size() != std::size_t(key.numbers + key.words))
+      lines.fail(std::string("a header line '") + key.name + "' has " +
+                 std::to_string(key.numbers) + (key.numbers == 1 ? " number" : " numbers") +
+                 " before its keywords, this one " + std::to_string(int(w.size()) - key.words));
+    switch (key.kind) {
+      case HeaderKeyword::atoms: atoms_count = whole(w[0], lines, "the atom count"); break;
+      case HeaderKeyword::ellipsoids:
+        ellipsoids_count = whole(w[0], lines, "the ellipsoid count");
+        break;
+      case HeaderKeyword::atom_types:
+        types = std::uint32_t(whole(w[0], lines, "the atom type count"));
+        break;
+      case HeaderKeyword::tilts:
+        for (int k = 0; k < 3; ++k) tilt[k] = number(w[std::size_t(k)], lines, "a tilt");
+        break;
+      case HeaderKeyword::bounds: {
+        const int k = key.axis;
+        lo[k] = number(w[0], lines, bound_names[k][0]);
+        hi[k] = number(w[1], lines, bound_names[k][1]);
+        have[k] = true;
+        break;
       }
+    }
   }
   for (int k = 0; k < 3; ++k)
     if (!have[k])
