@@ -511,12 +511,23 @@ class ScreenResult:
         return f"ScreenResult({len(self.pairs)} pairs)"
 
 
+def _real_array(values, name: str = "positions") -> np.ndarray:
+    """values as float64, refusing what the cast would change rather than
+    convert: complex numbers (numpy drops the imaginary part with a
+    warning), strings, dates (ValueError naming the argument, as the core
+    refuses them in the arguments it converts itself)."""
+    a = np.asarray(values)
+    if a.dtype.kind not in "fiubO":
+        raise ValueError(f"{name} must be an array of real numbers, got dtype {a.dtype}")
+    return np.asarray(a, dtype=float)
+
+
 def _check_in_plane(positions, orientations, row: str = "particle") -> None:
     """A 2D scene: centres at z = 0, rotations about z (as the GSD reader
     checks). A bad one is named as `row` and its index, or as "the trial"
     when one row is given alone ((3,) or (4,)); arrays of other shapes are
     left to the core, which names them."""
-    p = np.asarray(positions, dtype=float)
+    p = _real_array(positions)
     if p.ndim in (1, 2) and p.shape[-1] == 3:
         rows = p.reshape(-1, 3)
         off = np.flatnonzero(rows[:, 2] != 0)
@@ -575,7 +586,7 @@ def _scene_arguments(who: str, positions, orientations, semi_axes, type_semi_axe
         raise ValueError("orientations are given with q, which they would not change: the forms q hold "
                          "the orientations (orientations go with semi_axes or type_semi_axes)")
     b = _as_box(box)
-    positions = np.asarray(positions, dtype=float)
+    positions = _real_array(positions)
     if b is not None and b.is2D:
         _check_in_plane(positions, orientations)
     return positions, semi_axes, type_semi_axes, typeid, b
@@ -748,7 +759,7 @@ class HardParticleMC:
         b = _as_box(box)
         if b is None or b.is2D or not b.periodic:
             raise ValueError("HardParticleMC needs a periodic three-dimensional box")
-        self._mc = _core.HardParticleMC(np.asarray(positions, dtype=float), orientations, semi_axes, b._core(),
+        self._mc = _core.HardParticleMC(_real_array(positions), orientations, semi_axes, b._core(),
                                         float(packing), float(translation), float(rotation), bool(adapt_steps),
                                         _integer(seed, "seed", 0, _UINT64_MAX), _threads(threads))
 
@@ -1062,7 +1073,7 @@ class MovingScene:
         if orientations is not None and q is not None:
             raise ValueError("orientations are given with q, which they would not change: the forms q hold "
                              "the orientations")
-        positions = np.asarray(positions, dtype=float)
+        positions = _real_array(positions)
         if self._two_dimensional():
             _check_in_plane(positions, orientations, row)
         return positions

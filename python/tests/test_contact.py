@@ -340,6 +340,21 @@ def test_complex_and_string_inputs_are_refused_naming_them():
         pw.contact_function(np.array([[0, 0, 1.5 + 5j]]), q, q)
     with pytest.raises(ValueError, match="q1 must be an array of real numbers"):
         pw.contact_function([0, 0, 1.5], np.array(["1", "0", "0", "1", "0", "1"]), q)
+    # Positions too, where the package converts them itself (a complex
+    # position lost its imaginary part with only numpy's warning).
+    positions = np.array([[0, 0, 0], [1.5 + 100j, 0, 0]])
+    axes = [0.5, 0.5, 0.5]
+    with pytest.raises(ValueError, match="positions must be an array of real numbers, got dtype complex"):
+        pw.screen(positions, None, axes, box=pw.Box.cube(10))
+    with pytest.raises(ValueError, match="positions must be an array of real numbers"):
+        pw.MovingScene(positions, None, axes, box=pw.Box.cube(10))
+    with pytest.raises(ValueError, match="positions must be an array of real numbers"):
+        pw.HardParticleMC(positions, None, axes, box=pw.Box.cube(10))
+    scene = pw.MovingScene(positions.real, None, axes, box=pw.Box.cube(10))
+    with pytest.raises(ValueError, match="positions must be an array of real numbers"):
+        scene.overlaps_many(positions, None, axes)
+    with pytest.raises(ValueError, match="positions must be an array of real numbers"):
+        pw.screen(np.array([["0", "0", "0"]]), None, axes)
 
 
 def test_forms_from_numpy_integers_and_huge_radii():
