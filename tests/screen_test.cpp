@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -1414,6 +1415,103 @@ TEST(Screen, APeriodicBoxTooSmallForTheCutoffIsAnError) {
   }
   EXPECT_THROW(screen(s, Box::periodic_box(8, 8, 8), 0, out), std::invalid_argument);
   EXPECT_THROW(screen(s, Box::periodic_box(8, 8, 8), std::nan(""), out), std::invalid_argument);
+}
+
+// Boxes that the factories refuse are refused by the screens and scenes
+// too when filled in by hand, and the factories refuse a box whose lengths
+// and tilts are finite but whose lattice vectors are not: such a box was
+// taken, and every pair lost (9 of 9 here).
+TEST(Screen, BoxesWithInfiniteOrFlatLatticesAreRefusedEverywhere) {
+  ParticleStore s;
+  for (int k = 0; k < 10; ++k) s.add({0.9 * k, 0, 0}, pwcontact::sphere(0.5));
+  auto expect_refused = [](const std::function<void()>& call, const std::string& what,
+                           const std::string& words) {
+    try {
+      call();
+      ADD_FAILURE() << what << ": accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << what << ": " << e.what();
+    }
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  expect_refused([] { Box::triclinic(1e300, 1e300, 1e300, 1e10, 0, 0); }, "xy Ly = 1e310",
+                 "a lattice vector is not finite (xy Ly = inf)");
+  expect_refused([] { Box::two_dimensional_box(1e300, 1e300, 1e300); }, "2D, xy Ly = 1e600",
+                 "a lattice vector is not finite");
+  Box by_hand;
+  by_hand.periodic = true;
+  by_hand.length = {inf, 20, 20};
+  Box tilted = Box::periodic_box(20, 20, 20);
+  tilted.tilt = {0, inf, 0};
+  Box flat = Box::periodic_box(1e300, 1e300, 20);
+  flat.tilt = {1e300, 0, 0};  // xy Ly = inf
+  for (const auto& [box, words] : {std::pair{by_hand, std::string("finite lengths, got inf")},
+                                   std::pair{tilted, std::string("tilt factors must be finite")},
+                                   std::pair{flat, std::string("lattice vector is not finite")}}) {
+    ScreenedPairs out;
+    expect_refused([&, b = box] { screen(s, b, 1, out); }, "screen_pairs", words);
+    expect_refused([&, b = box] { pwcontact::MovingScene scene(s, b); }, "MovingScene", words);
+    pwcontact::SkinNeighborList list;
+    expect_refused([&, b = box] { list.update(s, b, out); }, "SkinNeighborList", words);
+  }
+  ScreenedPairs open;
+  screen(s, Box::open(), 1, open);
+  EXPECT_EQ(open.size(), 9u);
+}
+
+// Spheres and pairs of one form are decided in closed form; where the
+// squares of the pair's numbers would be subnormal (tiny sizes, or centres
+// far closer than the sizes) the pair is scaled first, and the tests that
+// call a pair apart from squared distances decide nothing there: every
+// answer is the reference path's (which scales each pair) on the stored
+// numbers. Before, spheres of radius 1e-150 at |r| = 3e-160 had mu^2 off
+// by 1e-5, and of radius 1e-160 (subnormal Q) pairs within 2e-5 of contact
+// were missed.
+TEST(Screen, TinySpheresAndFormsAreDecidedAsTheReferencePathDecidesThem) {
+  struct Case {
+    double size, distance;  // |r| from distance (1 - 3e-5) to (1 + 3e-5)
+    bool same_form;
+  };
+  for (const Case& c : {Case{1e-150, 3e-160, false}, Case{1e-160, 2e-160, false},
+                        Case{1e-150, 3e-160, true}, Case{1e-155, 1.6e-155, true}}) {
+    for (int step = -6; step <= 6; ++step) {
+      const double d = c.distance * (1 + 5e-6 * step);
+      ParticleStore s;
+      if (c.same_form) {
+        const std::array<double, 4> turn = {0.9, 0.1, 0.3, 0.2};
+        s.add_axes({0, 0, 0}, {c.size, 0.6 * c.size, 0.5 * c.size}, turn);
+        s.add_axes({d, 0.3 * d, 0}, {c.size, 0.6 * c.size, 0.5 * c.size}, turn);
+      } else {
+        s.add({0, 0, 0}, pwcontact::sphere(c.size));
+        s.add({d, 0, 0}, pwcontact::sphere(c.size));
+      }
+      const double r[3] = {s.centre(0)[1], s.centre(1)[1], s.centre(2)[1]};
+      double q0[6], q1[6];
+      for (int k = 0; k < 6; ++k) q0[k] = s.q(k)[0], q1[k] = s.q(k)[1];
+      const auto exact = pwcontact::contact_function<double>(r, q0, q1);
+      ASSERT_TRUE(pwcontact::is_valid(exact.status));
+      const std::string what = std::string(c.same_form ? "one form" : "spheres") + " of size " +
+                               std::to_string(c.size) + " at |r| " + std::to_string(d);
+      ScreenOptions options;
+      options.with_mu2 = true;
+      ScreenedPairs with_mu2, overlap;
+      pwcontact::screen_pairs(s, Box::open(), options, with_mu2);
+      options.with_mu2 = false;
+      pwcontact::screen_pairs(s, Box::open(), options, overlap);
+      const bool overlapping = exact.mu2 < 1;
+      EXPECT_EQ(with_mu2.size(), overlapping ? 1u : 0u) << what << ", mu2 " << exact.mu2;
+      EXPECT_EQ(overlap.size(), overlapping ? 1u : 0u) << what << ", mu2 " << exact.mu2;
+      // (The closed forms to 8 eps, as for pairs of ordinary sizes.)
+      if (with_mu2.size() == 1) EXPECT_NEAR(with_mu2.mu2[0], exact.mu2, 8e-16 * exact.mu2) << what;
+      pwcontact::MovingScene scene(s, Box::open());
+      const auto trial = scene.particles().particle_at(1);
+      EXPECT_EQ(scene.overlap_count(trial, 1), overlapping ? 1u : 0u) << what;
+      EXPECT_EQ(scene.overlaps(trial, 1), overlapping ? 0 : pwcontact::MovingScene::none) << what;
+      const auto near = scene.neighbors(trial, 1.0, true, 1);
+      ASSERT_EQ(near.size(), overlapping ? 1u : 0u) << what;
+      if (overlapping) EXPECT_NEAR(near[0].mu2, exact.mu2, 8e-16 * exact.mu2) << what;
+    }
+  }
 }
 
 TEST(Screen, AParticleWhoseQIsNotPositiveDefiniteIsRejectedByTheStore) {

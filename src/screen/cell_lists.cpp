@@ -37,6 +37,7 @@ constexpr double cells_per_reach[3] = {1, 1, 4};
 }  // namespace
 
 BoxGeometry::BoxGeometry(const Box& box) {
+  detail::check_box(box);
   if (!box.periodic) return;
   for (int k = 0; k < 3; ++k) periodic[k] = box.periodic_along(k);
   triclinic = !box.orthorhombic();

@@ -28,7 +28,14 @@
 
 #include "parallel_errors.hpp"
 #include "pwcontact/screen.hpp"
+#include "screen/pair_prefilters.hpp"
 #include "screen/uninitialized.hpp"
+
+namespace pwcontact::detail {
+// Throws std::invalid_argument ("Box: ...") for a periodic box that Box's
+// factories would refuse (particle_store.cpp, beside them).
+void check_box(const Box& box);
+}  // namespace pwcontact::detail
 
 namespace pwcontact::screen {
 
@@ -101,6 +108,9 @@ struct BoxGeometry {
   std::array<double, 3> width = {};  // perpendicular widths (periodic axes)
 
   BoxGeometry() = default;
+  // Throws std::invalid_argument for a periodic box that Box's factories
+  // would refuse (a Box filled in by hand: lengths not positive and finite,
+  // tilts or lattice vectors not finite, a flat box).
   explicit BoxGeometry(const Box& box);
 
   double inverse_diagonal[3] = {};  // 1 / h[k][k] (periodic axes)
@@ -529,6 +539,10 @@ void search_candidates(const CellLists& lists, int threads,
           const Member* member_i = &home.member[at];
           const CoarseMember& coarse_i = home.coarse[at];
           const double reach_i = lists.cutoff * coarse_i.bounding + lists.slack;
+          // (A particle so small that the squares below would be near the
+          // subnormal numbers: no coarse test, every member emitted, the
+          // exact tests after it decide.)
+          const bool squares_hold = reach_i * reach_i >= closed_form_low;
           double u_i[3];  // i's cell-space coordinates
           lists.cell_space(coarse_i.wrapped, u_i);
           // Classes of radii at least as large as i's (indices 0 .. own).
@@ -578,9 +592,9 @@ void search_candidates(const CellLists& lists, int threads,
                 }
                 if (nearest_image) geometry.minimum_image(c.r);
               };
-              if (!coarse_filter || nearest_image) {
+              if (!coarse_filter || nearest_image || !squares_hold) {
                 for (std::uint32_t m = begin; m < end; ++m) {
-                  if (coarse_filter) {
+                  if (coarse_filter && squares_hold) {
                     double d[3] = {coarse[m].wrapped[0] - origin[0],
                                    coarse[m].wrapped[1] - origin[1],
                                    coarse[m].wrapped[2] - origin[2]};

@@ -622,7 +622,7 @@ struct MovingScene::Impl {
           c.rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
           c.bounding = row[3 * tile];
           const double limit = trial_reach + scale * c.bounding;
-          if (c.rr >= limit * limit) continue;
+          if (c.rr >= limit * limit && limit * limit >= screen::closed_form_low) continue;
           c.at = start + k;
           __builtin_prefetch(&details[c.at]);
           if (++holding == hold && !visit_held()) return false;
@@ -759,6 +759,7 @@ MovingScene::MovingScene(ParticleStore particles, const Box& box, const MovingSc
     throw std::invalid_argument("MovingScene: at most 2^31 - 1 particles");
   particles.require_set("MovingScene");
   impl_->store = std::move(particles);
+  detail::check_box(box);  // (a Box filled in by hand: as its factories check it)
   impl_->box = box;
   if (box.periodic) impl_->widths = box.perpendicular_widths();
   impl_->options = options;

@@ -192,7 +192,7 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
   const std::size_t n = particles.size();
   const int threads = detail::thread_count(options_.threads, "SkinNeighborList");
   const double cutoff = options_.cutoff;
-  const screen::BoxGeometry geometry(box);
+  const screen::BoxGeometry geometry(box);  // (checks a Box filled in by hand)
   // (A kept list is checked as a rebuild's screen checks the store: an unset
   // particle, Q = 0, would otherwise pass as one that never moved.)
   particles.require_set("SkinNeighborList::update");
@@ -383,7 +383,9 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
           for (int d = 0; d < 3; ++d) r[d] = b.centre[d] - a.centre[d];
           geometry.minimum_image(r);
           const double reach = cutoff * (a.bounding + b.bounding);
-          if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach) continue;
+          if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach &&
+              reach * reach >= screen::closed_form_low)
+            continue;
           for (int k = 0; k < 3; ++k) column[k][m] = r[k];
           for (int k = 0; k < 6; ++k) column[3 + k][m] = a.q[k], column[9 + k][m] = b.q[k];
           which[m] = std::uint32_t(p);

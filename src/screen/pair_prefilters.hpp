@@ -70,6 +70,44 @@ inline bool apart_by_projections(const Side& p, const Side& o, const double r[3]
   return rr > 0 && rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
 }
 
+// Squares of lengths are trusted from closed_form_low up: below it they
+// come near the subnormal numbers, which keep only a few digits. The
+// tests that call a pair apart from squared distances (the bounding
+// spheres in the cell search, the screen, the moving scene and the
+// neighbour list's kept steps) decide nothing below it, and the closed
+// forms below take |r|^2 and r^T Q^-1 r as they are only within
+// [closed_form_low, closed_form_high]: beyond (sizes below ~1e-145 or above
+// ~1e145) they take the pair scaled by a power of two first, exactly, as
+// the solve's paths scale it.
+inline constexpr double closed_form_low = 0x1p-960, closed_form_high = 0x1p960;
+
+inline bool closed_form_in_range(double x) { return x >= closed_form_low && x <= closed_form_high; }
+
+// Two spheres of radii summing to `sum` (mu = |r| / sum): rr / sum^2, or
+// the same of r and sum scaled by 2^-e, sum = m 2^e (m in [1/2, 1)).
+inline double spheres_mu2(const double r[3], double rr, double sum) {
+  if (closed_form_in_range(rr) && closed_form_in_range(sum * sum)) return rr / (sum * sum);
+  int e = 0;
+  const double m = std::frexp(sum, &e);
+  double x[3];
+  for (int k = 0; k < 3; ++k) x[k] = std::ldexp(r[k], -e);
+  return detail::dot3(x, x) / (m * m);
+}
+
+// One form Q for both (eq. 11 at lambda = 1/2): r^T Q^-1 r / 4, or the same
+// of r and Q scaled by 2^-e and 2^-2e, Q's largest diagonal entry m 2^2e.
+inline double same_form_mu2(const double q[6], const double r[3], double rr) {
+  const double largest = std::max({q[0], q[3], q[5]});
+  if (closed_form_in_range(rr) && closed_form_in_range(largest))
+    return detail::inverse_quadratic_form(detail::Ldlt3<double>(q), r) / 4;
+  int e = 0;
+  std::frexp(std::sqrt(largest), &e);
+  double x[3], scaled[6];
+  for (int k = 0; k < 3; ++k) x[k] = std::ldexp(r[k], -e);
+  for (int k = 0; k < 6; ++k) scaled[k] = std::ldexp(q[k], -2 * e);
+  return detail::inverse_quadratic_form(detail::Ldlt3<double>(scaled), x) / 4;
+}
+
 // What the prefilters say of a pair the bounding spheres left.
 enum class NearPair : std::uint8_t {
   spheres,            // two spheres: mu2 in closed form
@@ -87,19 +125,20 @@ inline NearPair decide_near_pair(const Side& p, const Side& o, const double r[3]
   if (p.sphere > 0 && o.sphere > 0) {
     // Two spheres: mu = |r| / (a_i + a_j) (Q(lambda) is then a multiple of
     // I), to a few roundings.
-    const double sum = p.sphere + o.sphere;
-    mu2 = rr / (sum * sum);
+    mu2 = spheres_mu2(r, rr, p.sphere + o.sphere);
     return NearPair::spheres;
   }
   if (same_moderate_form(p, o)) {
     // Q1 = Q2 = Q: Q(lambda) = Q in eq. (10), so f(lambda) = lambda (1 -
     // lambda) r^T Q^-1 r by eq. (11), largest at lambda = 1/2 (eq. 6). A scene
     // of identical, aligned ellipsoids is an affine image of one of spheres.
-    mu2 = detail::inverse_quadratic_form(detail::Ldlt3<double>(p.q), r) / 4;
+    mu2 = same_form_mu2(p.q, r, rr);
     return NearPair::same_form;
   }
+  // (Where inner^2 or rr is subnormal, their few digits could decide a
+  // pair wrongly near the inscribed spheres' touch: left to the solve.)
   const double inner = cutoff * (p.inscribed + o.inscribed);
-  if (!with_mu2 && rr < inner * inner) return NearPair::in;
+  if (!with_mu2 && rr < inner * inner && inner * inner >= closed_form_low) return NearPair::in;
   if (apart_by_projections(p, o, r, rr, cutoff)) return NearPair::out_by_projection;
   return NearPair::undecided;
 }

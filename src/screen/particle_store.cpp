@@ -37,6 +37,34 @@ void check_tilts(std::initializer_list<double> tilts) {
 
 }  // namespace
 
+namespace detail {
+
+void check_box(const Box& box) {
+  if (!box.periodic) return;
+  const int axes = box.two_dimensional ? 2 : 3;
+  for (int k = 0; k < axes; ++k) check_lengths({box.length[std::size_t(k)]});
+  check_tilts({box.tilt[0]});
+  if (!box.two_dimensional) check_tilts({box.tilt[1], box.tilt[2]});
+  // The lattice vectors' entries (xy Ly; xz Lz and yz Lz) and the widths
+  // across the faces must be finite and the widths positive: lengths and
+  // tilts finite each can still overflow there (Lx = Ly = 1e300, xy =
+  // 1e10), and a box whose vectors are infinite, taken, lost every pair.
+  const std::array<double, 3> tilts = box.lammps_tilts();
+  const char* names[3] = {"xy Ly", "xz Lz", "yz Lz"};
+  for (int k = 0; k < (box.two_dimensional ? 1 : 3); ++k)
+    if (!std::isfinite(tilts[std::size_t(k)]))
+      throw std::invalid_argument(std::string("Box: a lattice vector is not finite (") + names[k] +
+                                  " = " + number_text(tilts[std::size_t(k)]) + ")");
+  const std::array<double, 3> widths = box.perpendicular_widths();
+  for (int k = 0; k < axes; ++k)
+    if (!(widths[std::size_t(k)] > 0) || !std::isfinite(widths[std::size_t(k)]))
+      throw std::invalid_argument("Box: the width across axis " + std::to_string(k) + " is " +
+                                  number_text(widths[std::size_t(k)]) +
+                                  " (the tilts leave the box flat or unbounded)");
+}
+
+}  // namespace detail
+
 Box Box::periodic_box(double lx, double ly, double lz) { return triclinic(lx, ly, lz, 0, 0, 0); }
 
 Box Box::triclinic(double lx, double ly, double lz, double xy, double xz, double yz) {
@@ -46,6 +74,7 @@ Box Box::triclinic(double lx, double ly, double lz, double xy, double xz, double
   box.periodic = true;
   box.length = {lx, ly, lz};
   box.tilt = {xy, xz, yz};
+  detail::check_box(box);
   return box;
 }
 
@@ -57,6 +86,7 @@ Box Box::two_dimensional_box(double lx, double ly, double xy) {
   box.two_dimensional = true;
   box.length = {lx, ly, 0};
   box.tilt = {xy, 0, 0};
+  detail::check_box(box);
   return box;
 }
 

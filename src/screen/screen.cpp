@@ -124,7 +124,7 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
 inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double rr,
                                       double bounding_sum) {
   const double reach = cutoff * bounding_sum;
-  if (rr < reach * reach) return false;
+  if (rr < reach * reach || reach * reach < screen::closed_form_low) return false;
   ++mine.out;
   return true;
 }
@@ -200,6 +200,7 @@ ScreenOptions checked(const ParticleStore& particles, const Box& box, ScreenOpti
   // (A slot resize() left unset has a reach of 0, which no grid of cells can
   // be sized for: the cell lists' search for a grid never ended.)
   particles.require_set("screen_pairs");
+  detail::check_box(box);  // (a Box filled in by hand: as its factories check it)
   if (!box.periodic || particles.size() == 0) return options;
   const std::vector<double>& bounding = particles.bounding_radius();
   const double largest = *std::max_element(bounding.begin(), bounding.end());
