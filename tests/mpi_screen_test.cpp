@@ -474,6 +474,34 @@ int main(int argc, char** argv) {
           pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, cube, ScreenOptions{}, out);
         },
         "too small for the cutoff");
+    // Centres whose differences overflow (two of 600, at -1e308 and 1e308):
+    // refused on every rank as the single-process screen refuses them,
+    // where 2 ranks, each screening one of them with the scene between,
+    // answered.
+    expect_error(
+        "centres spanning beyond the largest double",
+        [&] {
+          ParticleStore s;
+          std::vector<std::uint64_t> tags;
+          Random random{27};
+          for (std::uint64_t k = 0; k < 600; ++k) {
+            const std::array<double, 3> centre = {
+                16 * random.uniform() - 8, 16 * random.uniform() - 8, 16 * random.uniform() - 8};
+            const std::array<double, 3> axes = {0.3 + 0.5 * random.uniform(),
+                                                0.3 + 0.5 * random.uniform(),
+                                                0.3 + 0.5 * random.uniform()};
+            const auto q = random.quaternion();
+            if (int(k % std::uint64_t(ranks)) != rank) continue;
+            s.add_axes(k == 0   ? std::array<double, 3>{1e308, 0, 0}
+                       : k == 1 ? std::array<double, 3>{-1e308, 0, 0}
+                                : centre,
+                       axes, q);
+            tags.push_back(k);
+          }
+          pwcontact::mpi::TaggedPairs out;
+          pwcontact::mpi::screen_pairs(MPI_COMM_WORLD, s, tags, Box::open(), ScreenOptions{}, out);
+        },
+        "span more than the largest double along axis 0");
     expect_error(
         "a particle resize() left unset",
         [&] {

@@ -518,6 +518,19 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
             " is less than twice the largest reach cutoff * 2 R_max = " +
             std::to_string(largest_reach) + " (the minimum image convention would miss pairs)");
   }
+  // Open axes: differences of centres must be finite, as the
+  // single-process screen requires, over all ranks' centres (each rank's
+  // own screen sees only its own and its ghosts: with two centres at
+  // -1e308 and 1e308 on different ranks, 2 ranks answered where 1, 3 and 4
+  // refused). Thrown on every rank alike: every rank has the same extents.
+  for (int k = 0; k < 3; ++k)
+    if (!geometry.periodic[k] && global_max[1 + k] >= -global_max[4 + k] &&
+        !std::isfinite(global_max[1 + k] + global_max[4 + k]))
+      throw std::invalid_argument(
+          "screen_pairs (MPI): the centres span more than the largest double along axis " +
+          std::to_string(k) + " (from " + pwcontact::detail::number_text(-global_max[4 + k]) +
+          " to " + pwcontact::detail::number_text(global_max[1 + k]) +
+          "): their differences overflow");
   std::array<int, 3> dims = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);
