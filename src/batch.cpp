@@ -96,6 +96,14 @@ void check_pairs(const PairBatchView<T>& pairs) {
     if (stride > largest || stride < -largest)
       throw std::invalid_argument("PairBatchView: a stride of " + std::to_string(stride) +
                                   " numbers is beyond +-2^26");
+  // A count whose pairs the strides cannot address (a negative count
+  // converted to std::size_t, most likely): size -1 computed nothing and
+  // returned, -3000 read and wrote far beyond the arrays.
+  constexpr std::size_t most = std::size_t(1) << 36;  // x 2^26 numbers: within std::ptrdiff_t
+  if (pairs.size > most)
+    throw std::invalid_argument("PairBatchView: " + std::to_string(pairs.size) +
+                                " pairs, more than 2^36 (a negative count converted to "
+                                "std::size_t?)");
 }
 
 // Which optional outputs are asked for; a three-component output is all

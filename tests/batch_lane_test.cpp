@@ -583,6 +583,26 @@ TEST_P(BatchLanes, StridedViewsGiveTheAnswersOfColumnsBitForBitInFloat) {
   expect_strided_views_match_columns<float>(GetParam());
 }
 
+// A negative count, converted to std::size_t, is refused: size -1 computed
+// nothing and returned, -3000 read and wrote far beyond the arrays.
+TEST(BatchCall, NegativeCountsThrow) {
+  const std::vector<Pair<double>> rows = make_random_pairs(4, 3);
+  const PairBatch<double> batch = make_batch(rows);
+  std::vector<double> mu2(4);
+  std::vector<Status> status(4);
+  std::vector<std::uint8_t> overlap(4);
+  for (const long count : {-1L, -3000L}) {
+    pwcontact::PairBatchView<double> view = batch.view();
+    view.size = std::size_t(count);
+    EXPECT_THROW(pwcontact::contact_function_batch(view, {mu2.data(), nullptr, status.data()}),
+                 std::invalid_argument)
+        << count;
+    EXPECT_THROW(pwcontact::overlap_batch(view, {overlap.data(), status.data()}),
+                 std::invalid_argument)
+        << count;
+  }
+}
+
 TEST(BatchCall, StridesBeyondTheGathersReachThrow) {
   const PairBatch<double> batch = make_batch(make_random_pairs(10, 31));
   pwcontact::PairBatchView<double> view = batch.view();

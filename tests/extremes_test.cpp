@@ -309,7 +309,8 @@ void expect_power_of_two_scale_changes_no_bit(const std::vector<Pair<double>>& p
   const std::string what = label<T>(
       "scaled by 2^" + std::to_string(exponent) + ", " + pwcontact::precision_name(precision), isa);
   // Single precision on double pairs whose scale factor float cannot hold
-  // (2^+-126 and beyond): the float lanes leave every pair, and the double
+  // (the pairs of 2^+-480 here; the switch lies between 2^149 and 2^151 and
+  // between 2^-126 and 2^-128 for these pairs): the float lanes leave every pair, and the double
   // kernels finish them (the reference path what they leave) with the
   // answers of a double-precision call on the unscaled pairs, bit for bit.
   if (std::is_same<T, double>::value && precision == Precision::single_precision &&

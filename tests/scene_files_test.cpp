@@ -5,6 +5,8 @@
 // What is read is checked against what the writer was given; the pairs
 // against a brute force over every periodic image; malformed files against
 // their messages.
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -473,6 +475,113 @@ TEST_F(GsdWritten, ChunksWithRowsThatDoNotFitTheFrameAreRefusedNamingThem) {
       << message(short_q);
 }
 
+// The schema's integers (N, dimensions, typeid) stored as another type are
+// taken where they are whole numbers the schema's type holds, and refused
+// naming the chunk, frame and row otherwise: a typeid of 2^32 + 1 was read
+// as 1, of 0.9 as 0, a dimensions of 2.9 as 2, an N of 2.7 as 2, without a
+// word. A bad shape's form names the file and frame; a name's bytes that
+// are not printable are shown as \xHH; a pipe is refused by name.
+TEST_F(GsdWritten, IntegersOfOtherTypesMustBeWholeNumbersTheSchemaHolds) {
+  auto write = [&](const std::string& name, const std::function<void(pwcontact::GsdWriter&)>& f) {
+    std::ofstream out(directory_ / name, std::ios::binary);
+    pwcontact::GsdWriter writer(out);
+    f(writer);
+    writer.end_frame();
+    writer.finish();
+    return (directory_ / name).string();
+  };
+  auto message = [](const std::string& path) {
+    return message_of([&] { pwcontact::read_gsd(path, -1); });
+  };
+  auto two_spheres = [](pwcontact::GsdWriter& w, const std::vector<std::string>& names) {
+    w.write("configuration/box", std::vector<float>{10, 10, 10, 0, 0, 0}, 6);
+    w.write("particles/types", names);
+    w.write("particles/type_shapes",
+            std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})",
+                                     R"({"type": "Sphere", "diameter": 3})"});
+    w.write("particles/position", std::vector<float>{0, 0, 0, 1.5, 0, 0}, 2);
+  };
+  const std::pair<std::string, std::function<void(pwcontact::GsdWriter&)>> cases[] = {
+      {"chunk particles/typeid of frame 0, row 1: 4294967297 is not a whole number from 0 to "
+       "4294967295",
+       [&](pwcontact::GsdWriter& w) {
+         w.write("particles/N", std::vector<std::uint32_t>{2}, 1);
+         two_spheres(w, {"A", "B"});
+         w.write("particles/typeid", std::vector<std::uint64_t>{0, (std::uint64_t(1) << 32) + 1},
+                 2);
+       }},
+      {"chunk particles/typeid of frame 0, row 1: 0.9 is not a whole number",
+       [&](pwcontact::GsdWriter& w) {
+         w.write("particles/N", std::vector<std::uint32_t>{2}, 1);
+         two_spheres(w, {"A", "B"});
+         w.write("particles/typeid", std::vector<double>{0, 0.9}, 2);
+       }},
+      {"chunk configuration/dimensions of frame 0, row 0: 2.9 is not a whole number",
+       [&](pwcontact::GsdWriter& w) {
+         w.write("particles/N", std::vector<std::uint32_t>{2}, 1);
+         w.write("configuration/dimensions", std::vector<double>{2.9}, 1);
+         two_spheres(w, {"A", "B"});
+       }},
+      {"chunk particles/N of frame 0, row 0: 2.7 is not a whole number",
+       [&](pwcontact::GsdWriter& w) {
+         w.write("particles/N", std::vector<double>{2.7}, 1);
+         two_spheres(w, {"A", "B"});
+       }},
+      {"frame 0: particles/type_shapes, type 1 ('B\\x1B[2J'): ",
+       [&](pwcontact::GsdWriter& w) {
+         w.write("particles/N", std::vector<std::uint32_t>{2}, 1);
+         w.write("configuration/box", std::vector<float>{10, 10, 10, 0, 0, 0}, 6);
+         w.write("particles/types", std::vector<std::string>{"A", "B\x1b[2J"});
+         w.write("particles/type_shapes",
+                 std::vector<std::string>{R"({"type": "Sphere", "diameter": 1})",
+                                          R"({"type": "Ellipsoid", "a": 1, "b": 1, "c": 1e-170})"});
+         w.write("particles/position", std::vector<float>{0, 0, 0, 1.5, 0, 0}, 2);
+       }},
+  };
+  int k = 0;
+  for (const auto& [expected, fill] : cases) {
+    const std::string path = write("integers" + std::to_string(k++) + ".gsd", fill);
+    const std::string got = message(path);
+    EXPECT_NE(got.find(path + ": "), std::string::npos) << got;
+    EXPECT_NE(got.find(expected), std::string::npos) << got;
+  }
+  // The same numbers as whole numbers of other types are taken.
+  const std::string whole = write("whole.gsd", [&](pwcontact::GsdWriter& w) {
+    w.write("particles/N", std::vector<double>{2}, 1);
+    two_spheres(w, {"A", "B"});
+    w.write("particles/typeid", std::vector<double>{0, 1}, 2);
+  });
+  const Scene scene = pwcontact::read_gsd(whole, -1);
+  ASSERT_EQ(scene.particles.size(), 2u);
+  EXPECT_EQ(scene.particles.sphere_radius()[1], 1.5);
+  // type_shapes is JSON: its escapes are JSON's ("Ellips\u006fid" is an
+  // Ellipsoid; it was read as "Ellipsu006fid"), and what JSON does not
+  // allow is refused ("\o", a number "01"; both were taken).
+  auto shaped = [&](const std::string& name, const std::string& json) {
+    return write(name, [&](pwcontact::GsdWriter& w) {
+      w.write("particles/N", std::vector<std::uint32_t>{1}, 1);
+      w.write("configuration/box", std::vector<float>{10, 10, 10, 0, 0, 0}, 6);
+      w.write("particles/types", std::vector<std::string>{"A"});
+      w.write("particles/type_shapes", std::vector<std::string>{json});
+      w.write("particles/position", std::vector<float>{0, 0, 0}, 1);
+    });
+  };
+  const Scene escaped = pwcontact::read_gsd(
+      shaped("escaped.gsd", R"({"type": "Ellips\u006fid", "\u0061": 2, "b": 1, "c": 0.5})"), -1);
+  EXPECT_EQ(escaped.particles.bounding_radius()[0] > 1.99, true);
+  EXPECT_NE(message(shaped("bad_escape.gsd", R"({"type": "Ellips\oid", "a": 1, "b": 1, "c": 1})"))
+                .find("an escape JSON does not have"),
+            std::string::npos);
+  EXPECT_NE(message(shaped("leading_zero.gsd", R"({"type": "Sphere", "diameter": 01})"))
+                .find("not a number in JSON's grammar"),
+            std::string::npos);
+  // A pipe has no size and no offsets: refused by name (it was read as a
+  // file of 0 bytes).
+  const std::string pipe = (directory_ / "pipe.gsd").string();
+  ASSERT_EQ(mkfifo(pipe.c_str(), 0600), 0);
+  EXPECT_NE(message(pipe).find("not a regular file"), std::string::npos) << message(pipe);
+}
+
 TEST_F(GsdWritten, AHugeParticleCountIsCheckedAgainstTheChunksBeforeAnythingIsAllocated) {
   // particles/N = 2^31 - 1 with chunks of 4 rows: refused naming the chunk
   // (not 3 N doubles of positions allocated first, 51 GB).
@@ -546,10 +655,15 @@ TEST_F(GsdWritten, AChunkOfStringsWithRowsOfNoCharactersIsRefused) {
     patched = true;
   }
   file.close();
+  // (Refused before any name is made: the rows against type_shapes' first,
+  // which this file's one shape does not match; the names' own check, rows
+  // of no characters, where type_shapes would match them.)
   const std::string message = message_of([&] { pwcontact::read_gsd(path.string()); });
-  EXPECT_NE(
-      message.find("chunk particles/types of frame 0 has 1000000000000 rows of no characters"),
-      std::string::npos)
+  EXPECT_TRUE(
+      message.find("chunk particles/types of frame 0 has 1000000000000 rows of no characters") !=
+          std::string::npos ||
+      message.find("frame 0: particles/type_shapes has 1 rows for 1000000000000 types") !=
+          std::string::npos)
       << message;
 }
 
@@ -670,6 +784,12 @@ TEST(SceneFiles, MalformedLammpsFilesNameTheirLine) {
       {"1 1 1 1 1 5 5 a b c", "the image flag 'a' is not an integer"},
       {"1 1 1 1 1 5 5 0 1.5 0", "the image flag '1.5' is not an integer"},
       {"0 1 1 1 1 5 5", "atom id 0: LAMMPS atom ids are positive"},
+      // ('+' before a number, not before a sign: "+-1" was read as -1.)
+      {"1 1 1 1 +-1 5 5", "a coordinate '+-1' is not a finite number"},
+      {"1 1 1 1 1 5 5 0 +-1 0", "the image flag '+-1' is not an integer"},
+      // (A file's bytes in a message as \xHH: an escape sequence no more
+      // acts on the terminal.)
+      {"1 1 1 \x1b[2J 1 5 5", "the density '\\x1B[2J' is not a finite number"},
   };
   for (const auto& [replacement, expected] : bad_fields) {
     const std::string bad = write_with("field.data", atoms + 2, replacement);
@@ -792,6 +912,12 @@ TEST(SceneFiles, MalformedLammpsDumpsNameTheirLine) {
       message_of([&] { pwcontact::read_lammps_dump((dir / "scaled.dump").string(), 0, columns); });
   EXPECT_NE(scaled_message.find("column xs holds scaled coordinates"), std::string::npos)
       << scaled_message;
+  // A dump is read twice (its frames found, then one read): a named pipe is
+  // refused by name, where the second read hung.
+  const std::string pipe = (dir / "pipe.dump").string();
+  ASSERT_EQ(mkfifo(pipe.c_str(), 0600), 0);
+  const std::string pipe_message = message_of([&] { pwcontact::read_lammps_dump(pipe, 0); });
+  EXPECT_NE(pipe_message.find("not a regular file"), std::string::npos) << pipe_message;
   fs::remove_all(dir);
 }
 

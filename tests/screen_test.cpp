@@ -1502,14 +1502,18 @@ TEST(Screen, TinySpheresAndFormsAreDecidedAsTheReferencePathDecidesThem) {
       EXPECT_EQ(with_mu2.size(), overlapping ? 1u : 0u) << what << ", mu2 " << exact.mu2;
       EXPECT_EQ(overlap.size(), overlapping ? 1u : 0u) << what << ", mu2 " << exact.mu2;
       // (The closed forms to 8 eps, as for pairs of ordinary sizes.)
-      if (with_mu2.size() == 1) EXPECT_NEAR(with_mu2.mu2[0], exact.mu2, 8e-16 * exact.mu2) << what;
+      if (with_mu2.size() == 1) {
+        EXPECT_NEAR(with_mu2.mu2[0], exact.mu2, 8e-16 * exact.mu2) << what;
+      }
       pwcontact::MovingScene scene(s, Box::open());
       const auto trial = scene.particles().particle_at(1);
       EXPECT_EQ(scene.overlap_count(trial, 1), overlapping ? 1u : 0u) << what;
       EXPECT_EQ(scene.overlaps(trial, 1), overlapping ? 0 : pwcontact::MovingScene::none) << what;
       const auto near = scene.neighbors(trial, 1.0, true, 1);
       ASSERT_EQ(near.size(), overlapping ? 1u : 0u) << what;
-      if (overlapping) EXPECT_NEAR(near[0].mu2, exact.mu2, 8e-16 * exact.mu2) << what;
+      if (overlapping) {
+        EXPECT_NEAR(near[0].mu2, exact.mu2, 8e-16 * exact.mu2) << what;
+      }
     }
   }
 }

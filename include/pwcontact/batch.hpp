@@ -321,9 +321,12 @@ std::optional<Formulation> parse_formulation(std::string_view name) noexcept;
 //
 // Results do not depend on the thread count or on a pair's position in the
 // batch (bit for bit) and are within the reference path's precision of it
-// for every instruction set. Throws std::invalid_argument for a malformed
-// call (null pointers, negative counts, an option the input type does not
-// support).
+// for every instruction set (but lambda, and the geometry built on it, of
+// pairs beyond aspect ratios ~1e4, where f is flat: there the convergence
+// test above stops short of the reference path's lambda; see README, "Known
+// limits"). Throws std::invalid_argument for a malformed call (null
+// pointers, negative counts, which as std::size_t are beyond the 2^36 pairs
+// a call takes, an option the input type does not support).
 BatchReport contact_function_batch(const PairBatchView<double>& pairs,
                                    const ContactOutputs<double>& out,
                                    const BatchOptions& options = {});

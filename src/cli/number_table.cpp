@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "cli/command_line.hpp"
+#include "number_text.hpp"
 #include "parallel_errors.hpp"
 
 namespace pwcontact::cli {
@@ -25,22 +26,7 @@ namespace {
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 
-// Input text as a message shows it: bytes that are not printable ASCII
-// (a NUL would cut the message short) as \xHH.
-std::string printable(std::string_view text) {
-  std::string out;
-  for (const char c : text) {
-    const unsigned char u = static_cast<unsigned char>(c);
-    if (u >= 0x20 && u < 0x7f) {
-      out += c;
-    } else {
-      char escaped[5];
-      std::snprintf(escaped, sizeof escaped, "\\x%02X", u);
-      out += escaped;
-    }
-  }
-  return out;
-}
+using detail::printable;
 
 const char* skip_blanks(const char* p, const char* end) {
   while (p != end && is_blank(*p)) ++p;

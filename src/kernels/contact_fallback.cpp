@@ -33,7 +33,8 @@ void solve_overlap(const PairSpan<In>&, const OverlapSpan& out, std::size_t n, c
 }
 
 // The coarse test member by member, in the caller's own arithmetic (so
-// exactly the test the caller makes after it).
+// exactly the test the caller makes after it, with its absolute slack of
+// 2^-1000 for squares near the subnormal numbers: screen::square_slack).
 std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t n,
                                     const double origin[3], double reach, double scale) {
   std::uint32_t meet = 0;
@@ -42,7 +43,7 @@ std::uint32_t bounding_spheres_meet(const CoarseMembers& members, std::uint32_t 
     const double x = row[0] - origin[0], y = row[coarse_tile] - origin[1],
                  z = row[2 * coarse_tile] - origin[2];
     const double limit = reach + scale * row[3 * coarse_tile];
-    meet |= std::uint32_t(x * x + y * y + z * z < limit * limit) << k;
+    meet |= std::uint32_t(x * x + y * y + z * z < limit * limit + 0x1p-1000) << k;
   }
   return meet;
 }

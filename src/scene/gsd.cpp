@@ -11,8 +11,10 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <unordered_map>
 #include <vector>
 
@@ -30,11 +32,19 @@ using namespace detail::gsd;
 class GsdFile {
  public:
   explicit GsdFile(const std::string& path) : path_(path) {
-    descriptor_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    // (O_NONBLOCK: opening a named pipe without it waits for a writer,
+    // before the check below can refuse it; it changes nothing for a file.)
+    descriptor_ = open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (descriptor_ < 0)
       throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
     struct stat info {};
     if (fstat(descriptor_, &info) != 0) fail_io();
+    // (A pipe has no size and cannot be read at offsets: refused by name,
+    // where it was taken for a file of 0 bytes.)
+    if (!S_ISREG(info.st_mode))
+      malformed(
+          "not a regular file (a pipe or a device?): a GSD file is read at the offsets its "
+          "index gives, so from a file");
     size_ = std::uint64_t(info.st_size);
     Header header;
     if (size_ < sizeof header)
@@ -69,7 +79,11 @@ class GsdFile {
   }
 
   // The chunk's values converted to T (numbers only), checked against the
-  // shape the schema gives it.
+  // shape the schema gives it. Into an integer T, a value must be a whole
+  // number T holds (the schema stores N, dimensions and typeid as unsigned
+  // integers; another type is taken where its values are such numbers):
+  // a typeid of 2^32 + 1 was read as 1, of 0.9 as 0, a dimensions of 2.9
+  // as 2, each without a word.
   template <class T>
   std::vector<T> numbers(const IndexEntry& e, const std::string& name, std::uint64_t rows,
                          std::uint32_t columns) const {
@@ -82,6 +96,22 @@ class GsdFile {
       for (std::size_t k = 0; k < count; ++k) {
         S v;
         std::memcpy(&v, raw.data() + k * sizeof(S), sizeof(S));
+        if constexpr (std::is_integral<T>::value) {
+          static_assert(std::is_unsigned<T>::value, "the schema's integers are unsigned");
+          bool whole = true;
+          if constexpr (std::is_floating_point<S>::value)
+            whole = v >= 0 && v < std::ldexp(1.0, std::numeric_limits<T>::digits) &&
+                    double(v) == std::floor(double(v));
+          else if constexpr (std::is_signed<S>::value)
+            whole = v >= 0 && std::uint64_t(v) <= std::uint64_t(std::numeric_limits<T>::max());
+          else
+            whole = std::uint64_t(v) <= std::uint64_t(std::numeric_limits<T>::max());
+          if (!whole)
+            malformed("chunk " + name + " of frame " + std::to_string(e.frame) + ", row " +
+                      std::to_string(k / columns) + ": " + detail::number_text(double(v)) +
+                      " is not a whole number from 0 to " +
+                      std::to_string(std::numeric_limits<T>::max()));
+        }
         out[k] = T(v);
       }
     };
@@ -289,14 +319,13 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
     file.malformed(where + ": " + std::to_string(n) +
                    " particles but no particles/position (in this frame or frame 0): every "
                    "particle would sit at the origin");
-  scene.type_names = {"A"};
-  if (const IndexEntry* e = file.find(f, "particles/types") ? file.find(f, "particles/types")
-                                                            : file.find(0, "particles/types"))
-    scene.type_names = file.strings(*e, "particles/types");
-  const std::size_t types = scene.type_names.size();
+  const IndexEntry* types_entry = file.find(f, "particles/types") ? file.find(f, "particles/types")
+                                                                  : file.find(0, "particles/types");
+  const std::size_t types = types_entry ? std::size_t(types_entry->n) : 1;
   // One shape per type: the frame's own chunk as well as frame 0's (which
   // chunk() takes only with as many rows), or a type's shape would be read
-  // beyond the chunk.
+  // beyond the chunk. (Checked before the names are made: a file of many
+  // one-byte names and no shapes made a string of each, 36 times its size.)
   const IndexEntry* shapes_entry = chunk(file, f, "particles/type_shapes", types);
   if (!shapes_entry)
     file.malformed(where + ": no particles/type_shapes for its " + std::to_string(types) +
@@ -304,6 +333,8 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
   if (shapes_entry->n != types)
     file.malformed(where + ": particles/type_shapes has " + std::to_string(shapes_entry->n) +
                    " rows for " + std::to_string(types) + " types");
+  scene.type_names = {"A"};
+  if (types_entry) scene.type_names = file.strings(*types_entry, "particles/types");
   const std::vector<std::string> shapes_json = file.strings(*shapes_entry, "particles/type_shapes");
 
   // (A chunk's values are read, its size checked against the file's, before
@@ -322,15 +353,22 @@ Scene read_gsd(const std::string& path, std::int64_t frame) {
     try {
       shapes.push_back(detail::parse_shape(shapes_json[t], dimensions == 2));
     } catch (const std::invalid_argument& e) {
-      file.malformed(where + ": type " + std::to_string(t) + " ('" + scene.type_names[t] +
-                     "'): " + e.what());
+      file.malformed(where + ": type " + std::to_string(t) + " ('" +
+                     detail::printable(scene.type_names[t]) + "'): " + e.what());
     }
   }
 
   // Three dimensions: the store's shape types, one per GSD type (radii once
   // per type; one type declares identical shapes).
   if (dimensions == 3)
-    for (const detail::ShapeAxes& shape : shapes) scene.particles.add_type(shape.a);
+    for (std::size_t t = 0; t < types; ++t) {
+      try {
+        scene.particles.add_type(shapes[t].a);
+      } catch (const std::invalid_argument& e) {
+        file.malformed(where + ": particles/type_shapes, type " + std::to_string(t) + " ('" +
+                       detail::printable(scene.type_names[t]) + "'): " + e.what());
+      }
+    }
   scene.particles.resize(n);
   detail::ParallelErrors errors;
   const std::int64_t signed_n = std::int64_t(n);

@@ -1,5 +1,7 @@
 // LAMMPS scenes of atom_style ellipsoid: data files (read_data's format)
 // and text dumps (dump custom), per the LAMMPS documentation of both.
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -13,6 +15,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "number_text.hpp"
 #include "pwcontact/scene_files.hpp"
 #include "scene/shape_json.hpp"
 
@@ -70,12 +73,19 @@ std::vector<std::string_view> words(std::string_view line) {
   return out;
 }
 
-double number(std::string_view word, const Lines& lines, const char* what) {
+// (A '+' is taken before a number as LAMMPS takes it, but not before a
+// sign: "+-1.5" was read as -1.5.)
+std::string_view without_plus(std::string_view word) {
+  if (word.size() > 1 && word[0] == '+' && word[1] != '-' && word[1] != '+') word.remove_prefix(1);
+  return word;
+}
+
+double number(std::string_view given, const Lines& lines, const char* what) {
   double value = 0;
-  if (!word.empty() && word[0] == '+') word.remove_prefix(1);
+  const std::string_view word = without_plus(given);
   const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
   if (error != std::errc() || end != word.data() + word.size() || !std::isfinite(value))
-    lines.fail(std::string(what) + " '" + std::string(word) + "' is not a finite number");
+    lines.fail(std::string(what) + " '" + detail::printable(given) + "' is not a finite number");
   return value;
 }
 
@@ -83,16 +93,16 @@ std::uint64_t whole(std::string_view word, const Lines& lines, const char* what)
   std::uint64_t value = 0;
   const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
   if (error != std::errc() || end != word.data() + word.size())
-    lines.fail(std::string(what) + " '" + std::string(word) + "' is not a whole number");
+    lines.fail(std::string(what) + " '" + detail::printable(word) + "' is not a whole number");
   return value;
 }
 
-std::int64_t integer(std::string_view word, const Lines& lines, const char* what) {
+std::int64_t integer(std::string_view given, const Lines& lines, const char* what) {
   std::int64_t value = 0;
-  if (word.size() > 1 && word[0] == '+') word.remove_prefix(1);
+  const std::string_view word = without_plus(given);
   const auto [end, error] = std::from_chars(word.data(), word.data() + word.size(), value);
   if (error != std::errc() || end != word.data() + word.size())
-    lines.fail(std::string(what) + " '" + std::string(word) + "' is not an integer");
+    lines.fail(std::string(what) + " '" + detail::printable(given) + "' is not an integer");
   return value;
 }
 
@@ -284,11 +294,11 @@ Scene read_lammps_data(const std::string& path) {
           lines.fail("atom " + std::to_string(a.id) +
                      " has ellipsoidflag 0: a point particle, no shape");
         if (flag != 1)
-          lines.fail("atom " + std::to_string(a.id) + " has ellipsoidflag " + std::string(w[2]) +
-                     ", not 0 or 1");
+          lines.fail("atom " + std::to_string(a.id) + " has ellipsoidflag " +
+                     detail::printable(w[2]) + ", not 0 or 1");
         const double density = number(w[3], lines, "the density");
         if (!(density > 0))
-          lines.fail("atom " + std::to_string(a.id) + " has density " + std::string(w[3]) +
+          lines.fail("atom " + std::to_string(a.id) + " has density " + detail::printable(w[3]) +
                      ": LAMMPS requires a positive density");
         for (int k = 0; k < 3; ++k)
           a.position[k] = number(w[std::size_t(4 + k)], lines, "a coordinate");
@@ -341,6 +351,13 @@ Scene read_lammps_data(const std::string& path) {
 }
 
 Scene read_lammps_dump(const std::string& path, std::int64_t frame, const LammpsColumns& columns) {
+  // A dump is read twice (where its frames start, then the one asked for):
+  // from a pipe the second read hung or found nothing.
+  struct stat info {};
+  if (stat(path.c_str(), &info) == 0 && !S_ISREG(info.st_mode))
+    throw std::invalid_argument(path +
+                                ": not a regular file (a pipe or a device?): a LAMMPS dump is "
+                                "read twice, its frames found and then one read, so from a file");
   // First pass: where each frame (ITEM: TIMESTEP) starts.
   std::vector<std::streampos> starts;
   std::vector<std::size_t> start_lines;
@@ -452,7 +469,7 @@ Scene read_lammps_dump(const std::string& path, std::int64_t frame, const Lammps
     // origin. Mapped explicitly, they are refused, not misread.
     const std::string& name = names[position[k]];
     if (name == std::string(axes[k]) + "s" || name == std::string(axes[k]) + "su")
-      lines.fail("column " + name +
+      lines.fail("column " + detail::printable(name) +
                  " holds scaled coordinates (fractions of the box), which are not read: dump " +
                  wrapped + " or " + unwrapped + " (--columns " + wrapped + "=...)");
     const std::string usual_shape = std::string("shape") + axes[k];

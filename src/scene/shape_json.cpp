@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <stdexcept>
 
@@ -56,27 +57,114 @@ class Json {
   }
   [[noreturn]] void fail(const std::string& what) const {
     throw std::invalid_argument("its shape is not valid JSON (" + what + " at character " +
-                                std::to_string(at_) + "): " + text_.substr(0, 120));
+                                std::to_string(at_) + "): " + printable(text_.substr(0, 120)));
   }
+  // A string with JSON's escapes (RFC 8259, section 7): \uXXXX as UTF-8 (a
+  // surrogate pair as one character), the others as themselves; any other
+  // escape, and a control character, refused ("Ellips\u006fid" was read as
+  // "Ellipsu006fid", "Ellips\oid" taken).
   std::string string() {
     expect('"');
     std::string out;
     while (at_ < text_.size() && text_[at_] != '"') {
-      if (text_[at_] == '\\') {
-        if (++at_ >= text_.size()) break;
+      const unsigned char c = static_cast<unsigned char>(text_[at_]);
+      if (c < 0x20) fail("a control character in a string");
+      if (c != '\\') {
+        out += char(c);
+        ++at_;
+        continue;
       }
-      out += text_[at_++];
+      if (++at_ >= text_.size()) break;
+      const char e = text_[at_++];
+      switch (e) {
+        case '"': out += '"'; break;
+        case '\\': out += '\\'; break;
+        case '/': out += '/'; break;
+        case 'b': out += '\b'; break;
+        case 'f': out += '\f'; break;
+        case 'n': out += '\n'; break;
+        case 'r': out += '\r'; break;
+        case 't': out += '\t'; break;
+        case 'u': {
+          std::uint32_t code = hex4();
+          if (code >= 0xd800 && code < 0xdc00) {  // a high surrogate: its low one follows
+            if (at_ + 1 >= text_.size() || text_[at_] != '\\' || text_[at_ + 1] != 'u')
+              fail("a lone surrogate in a \\u escape");
+            at_ += 2;
+            const std::uint32_t low = hex4();
+            if (!(low >= 0xdc00 && low < 0xe000)) fail("a lone surrogate in a \\u escape");
+            code = 0x10000 + ((code - 0xd800) << 10) + (low - 0xdc00);
+          } else if (code >= 0xdc00 && code < 0xe000) {
+            fail("a lone surrogate in a \\u escape");
+          }
+          append_utf8(out, code);
+          break;
+        }
+        default: --at_; fail("an escape JSON does not have");
+      }
     }
     if (at_ >= text_.size()) fail("an unterminated string");
     ++at_;
     return out;
   }
+  std::uint32_t hex4() {
+    std::uint32_t code = 0;
+    for (int k = 0; k < 4; ++k, ++at_) {
+      const char h = at_ < text_.size() ? text_[at_] : '\0';
+      const int digit = h >= '0' && h <= '9'   ? h - '0'
+                        : h >= 'a' && h <= 'f' ? h - 'a' + 10
+                        : h >= 'A' && h <= 'F' ? h - 'A' + 10
+                                               : -1;
+      if (digit < 0) fail("a \\u escape without four hexadecimal digits");
+      code = code * 16 + std::uint32_t(digit);
+    }
+    return code;
+  }
+  static void append_utf8(std::string& out, std::uint32_t code) {
+    if (code < 0x80) {
+      out += char(code);
+    } else if (code < 0x800) {
+      out += char(0xc0 | (code >> 6));
+      out += char(0x80 | (code & 0x3f));
+    } else if (code < 0x10000) {
+      out += char(0xe0 | (code >> 12));
+      out += char(0x80 | ((code >> 6) & 0x3f));
+      out += char(0x80 | (code & 0x3f));
+    } else {
+      out += char(0xf0 | (code >> 18));
+      out += char(0x80 | ((code >> 12) & 0x3f));
+      out += char(0x80 | ((code >> 6) & 0x3f));
+      out += char(0x80 | (code & 0x3f));
+    }
+  }
+  // A number in JSON's grammar: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
+  // ("01", "1.", ".5", "+1" are not JSON numbers and are refused).
   double number() {
+    const std::size_t start = at_;
+    std::size_t k = at_;
+    auto digits = [&] {
+      const std::size_t from = k;
+      while (k < text_.size() && text_[k] >= '0' && text_[k] <= '9') ++k;
+      return k - from;
+    };
+    if (k < text_.size() && text_[k] == '-') ++k;
+    const std::size_t integer_start = k;
+    const std::size_t integer_digits = digits();
+    if (integer_digits == 0 || (integer_digits > 1 && text_[integer_start] == '0'))
+      fail("not a number in JSON's grammar");
+    if (k < text_.size() && text_[k] == '.') {
+      ++k;
+      if (digits() == 0) fail("not a number in JSON's grammar");
+    }
+    if (k < text_.size() && (text_[k] == 'e' || text_[k] == 'E')) {
+      ++k;
+      if (k < text_.size() && (text_[k] == '+' || text_[k] == '-')) ++k;
+      if (digits() == 0) fail("not a number in JSON's grammar");
+    }
     double value = 0;
-    const char* begin = text_.data() + at_;
-    const auto [end, error] = std::from_chars(begin, text_.data() + text_.size(), value);
-    if (error != std::errc()) fail("not a number");
-    at_ += std::size_t(end - begin);
+    const auto [end, error] = std::from_chars(text_.data() + start, text_.data() + k, value);
+    if (error != std::errc() || end != text_.data() + k) fail("not a number");
+    at_ = k;
     return value;
   }
   void skip_value() {
@@ -147,7 +235,7 @@ ShapeAxes parse_shape(const std::string& json, bool two_dimensional) {
     const double a = positive(numbers, "a", type), b = positive(numbers, "b", type);
     return {{a, b, a < b ? a : b}};
   }
-  throw std::invalid_argument("its shape is '" + type +
+  throw std::invalid_argument("its shape is '" + printable(type) +
                               "', not an ellipsoid (Ellipsoid, Sphere, or Ellipse in 2D)");
 }
 

@@ -622,7 +622,7 @@ struct MovingScene::Impl {
           c.rr = c.r[0] * c.r[0] + c.r[1] * c.r[1] + c.r[2] * c.r[2];
           c.bounding = row[3 * tile];
           const double limit = trial_reach + scale * c.bounding;
-          if (c.rr >= limit * limit && limit * limit >= screen::closed_form_low) continue;
+          if (c.rr >= limit * limit + screen::square_slack) continue;
           c.at = start + k;
           __builtin_prefetch(&details[c.at]);
           if (++holding == hold && !visit_held()) return false;

@@ -383,8 +383,7 @@ SkinReport SkinNeighborList::update(const ParticleStore& particles, const Box& b
           for (int d = 0; d < 3; ++d) r[d] = b.centre[d] - a.centre[d];
           geometry.minimum_image(r);
           const double reach = cutoff * (a.bounding + b.bounding);
-          if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach &&
-              reach * reach >= screen::closed_form_low)
+          if (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] >= reach * reach + screen::square_slack)
             continue;
           for (int k = 0; k < 3; ++k) column[k][m] = r[k];
           for (int k = 0; k < 6; ++k) column[3 + k][m] = a.q[k], column[9 + k][m] = b.q[k];

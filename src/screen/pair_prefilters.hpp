@@ -70,15 +70,19 @@ inline bool apart_by_projections(const Side& p, const Side& o, const double r[3]
   return rr > 0 && rr >= cutoff * (std::sqrt(sp) + std::sqrt(so)) * (1 + 4 * eps);
 }
 
-// Squares of lengths are trusted from closed_form_low up: below it they
-// come near the subnormal numbers, which keep only a few digits. The
-// tests that call a pair apart from squared distances (the bounding
-// spheres in the cell search, the screen, the moving scene and the
-// neighbour list's kept steps) decide nothing below it, and the closed
-// forms below take |r|^2 and r^T Q^-1 r as they are only within
+// Squares of lengths near the subnormal numbers keep only a few digits
+// (each product errs by up to 2^-1075 absolutely). The tests that call a
+// pair apart from squared distances (the bounding spheres in the screen,
+// the moving scene and the neighbour list's kept steps; the coarse kernels
+// let as much through) compare with an absolute slack, |r|^2 >= limit^2 +
+// square_slack, which changes nothing where the squares are normal and
+// decides nothing where they are not; the cell search's coarse test is
+// left out for a particle whose reach squared is below closed_form_low.
+// The closed forms below take |r|^2 and r^T Q^-1 r as they are only within
 // [closed_form_low, closed_form_high]: beyond (sizes below ~1e-145 or above
 // ~1e145) they take the pair scaled by a power of two first, exactly, as
 // the solve's paths scale it.
+inline constexpr double square_slack = 0x1p-1000;
 inline constexpr double closed_form_low = 0x1p-960, closed_form_high = 0x1p960;
 
 inline bool closed_form_in_range(double x) { return x >= closed_form_low && x <= closed_form_high; }

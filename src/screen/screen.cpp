@@ -124,7 +124,7 @@ void solve_waiting(ThreadPairs& t, const ScreenOptions& options) {
 inline bool apart_by_bounding_spheres(ThreadPairs& mine, double cutoff, double rr,
                                       double bounding_sum) {
   const double reach = cutoff * bounding_sum;
-  if (rr < reach * reach || reach * reach < screen::closed_form_low) return false;
+  if (rr < reach * reach + screen::square_slack) return false;
   ++mine.out;
   return true;
 }
