@@ -912,10 +912,30 @@ def read_gsd(path: str, frame: int = -1) -> dict:
     with opened as trajectory:
         snap, index, frames = _gsd_frame(trajectory, frame)
         particles = snap.particles
-        n = int(particles.N)
+
+        def whole(values, name):
+            # The schema's unsigned integers, stored as another type: taken
+            # where each is a whole number uint32 holds, refused naming the
+            # chunk otherwise, as the C++ reader (a typeid of 2**32 + 1 was
+            # read as 1, of 0.9 as 0, without a word).
+            a = np.atleast_1d(np.asarray(values))
+            if a.dtype.kind == "f":
+                bad = ~(np.isfinite(a) & (a >= 0) & (a < 2.0**32) & (a == np.floor(a)))
+            elif a.dtype.kind in "iu":
+                bad = (a < 0) | (a > 2**32 - 1)
+            else:
+                bad = np.ones(a.shape, dtype=bool)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"{path}: frame {index}: {name}, row {k}: {a[k]!r} is not a whole "
+                                 f"number from 0 to 4294967295")
+            return a.astype(np.uint32)
+
+        n = int(whole(particles.N, "particles/N")[0])
         types = list(particles.types) if particles.types is not None else ["A"]
         shapes = list(particles.type_shapes) if particles.type_shapes is not None else []
-        dimensions = int(snap.configuration.dimensions) if snap.configuration.dimensions is not None else 3
+        dimensions = (int(whole(snap.configuration.dimensions, "configuration/dimensions")[0])
+                      if snap.configuration.dimensions is not None else 3)
         axes = []
         for t, name in enumerate(types):
             shape = shapes[t] if t < len(shapes) else {}
@@ -941,7 +961,7 @@ def read_gsd(path: str, frame: int = -1) -> dict:
         position = np.asarray(particles.position, dtype=float).reshape(n, 3)
         orientation = (np.asarray(particles.orientation, dtype=float).reshape(n, 4)
                        if particles.orientation is not None else np.tile([1.0, 0, 0, 0], (n, 1)))
-        typeid = (np.asarray(particles.typeid, dtype=np.uint32)
+        typeid = (whole(particles.typeid, "particles/typeid")
                   if particles.typeid is not None else np.zeros(n, dtype=np.uint32))
         box = Box.from_box(list(snap.configuration.box), dimensions=dimensions)
     return {"positions": position, "orientations": orientation, "type_semi_axes": np.array(axes),

@@ -171,6 +171,36 @@ def test_read_gsd_names_what_is_wrong(tmp_path):
         pw.read_gsd(str(path), frame=np.int64(0))
 
 
+def test_gsd_integers_of_other_types_must_be_whole_numbers_in_both_readers(tmp_path):
+    # particles/typeid written at the file layer as int64 2**32 + 1 and as
+    # float64 0.9 (the hoomd schema's type is uint32): both readers refuse
+    # them naming the chunk, where each read them as types 1 and 0.
+    gsd_fl = pytest.importorskip("gsd.fl")
+
+    def chars(rows):
+        width = max(len(r) for r in rows) + 1
+        out = np.zeros((len(rows), width), dtype=np.int8)
+        for k, r in enumerate(rows):
+            out[k, :len(r)] = np.frombuffer(r.encode(), dtype=np.int8)
+        return out
+
+    for typeid, shown in ((np.array([0, 2**32 + 1], np.int64), "4294967297"), (np.array([0, 0.9]), "0.9")):
+        path = tmp_path / f"typeid_{typeid.dtype}.gsd"
+        with gsd_fl.open(name=str(path), mode="wb", application="test", schema="hoomd",
+                         schema_version=[1, 4]) as f:
+            f.write_chunk(name="configuration/box", data=np.array([10, 10, 10, 0, 0, 0], np.float32))
+            f.write_chunk(name="particles/N", data=np.array([2], np.uint32))
+            f.write_chunk(name="particles/types", data=chars(["Big", "Small"]))
+            f.write_chunk(name="particles/type_shapes",
+                          data=chars(['{"type": "Sphere", "diameter": 2}', '{"type": "Sphere", "diameter": 0.2}']))
+            f.write_chunk(name="particles/position", data=np.array([[0, 0, 0], [1.5, 0, 0]], np.float32))
+            f.write_chunk(name="particles/typeid", data=typeid)
+            f.end_frame()
+        for reader in (pw.read_gsd, pw.read_gsd_native):
+            with pytest.raises(ValueError, match=f"particles/typeid.*row 1: {shown} is not a whole number"):
+                reader(str(path))
+
+
 def test_a_screen_result_keeps_the_positions_it_was_made_from():
     # The caller's array changed in place afterwards (as a SkinNeighborList
     # loop's is): the result's vectors are those of its own step.
