@@ -1791,6 +1791,10 @@ TEST(Screen, BadTypesAndTypedParticlesAreRefusedNamingThem) {
               s.add_type({1, 0, 2});
             }),
             "type 0: semi-axes must be positive and finite, got (1, 0, 2)");
+  EXPECT_EQ(message([&] {
+              s.add_type({1e200, 1, 1});
+            }),
+            "type 0: Q is not finite (its largest eigenvalue, a semi-axis squared, overflows)");
   EXPECT_EQ(s.types(), 0u);
   s.add_type({1, 2, 3});
   EXPECT_EQ(message([&] {

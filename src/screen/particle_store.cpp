@@ -471,6 +471,11 @@ void ParticleStore::add_typed(const std::array<double, 3>& centre, std::uint32_t
 
 ParticleStore::Radii ParticleStore::radii_of(const std::string& who, const std::array<double, 6>& q,
                                              double smallest, double largest) {
+  // (Semi-axes beyond ~1.3e154 square to infinity: said so, where the slack
+  // it made infinite read "not positive definite (smallest eigenvalue 1)".)
+  if (!std::isfinite(largest))
+    throw std::invalid_argument(who + ": Q is not finite (its largest eigenvalue, a semi-axis " +
+                                "squared, overflows)");
   const double slack = eigenvalue_slack(largest);
   if (!(smallest > slack))
     throw std::invalid_argument(who + ": Q is not positive definite (smallest eigenvalue " +
