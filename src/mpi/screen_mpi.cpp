@@ -524,13 +524,8 @@ DistributedReport screen_distributed(MPI_Comm comm, const ParticleStore& particl
   // -1e308 and 1e308 on different ranks, 2 ranks answered where 1, 3 and 4
   // refused). Thrown on every rank alike: every rank has the same extents.
   for (int k = 0; k < 3; ++k)
-    if (!geometry.periodic[k] && global_max[1 + k] >= -global_max[4 + k] &&
-        !std::isfinite(global_max[1 + k] + global_max[4 + k]))
-      throw std::invalid_argument(
-          "screen_pairs (MPI): the centres span more than the largest double along axis " +
-          std::to_string(k) + " (from " + pwcontact::detail::number_text(-global_max[4 + k]) +
-          " to " + pwcontact::detail::number_text(global_max[1 + k]) +
-          "): their differences overflow");
+    if (!geometry.periodic[k] && global_max[1 + k] >= -global_max[4 + k])
+      screen::check_centres_span("screen_pairs (MPI)", k, -global_max[4 + k], global_max[1 + k]);
   std::array<int, 3> dims = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
     const auto K = std::size_t(k);

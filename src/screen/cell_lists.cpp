@@ -36,6 +36,16 @@ constexpr double cells_per_reach[3] = {1, 1, 4};
 
 }  // namespace
 
+void check_centres_span(const char* who, int axis, double low, double high) {
+  if (std::isfinite(high - low)) return;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "%s: the centres span more than the largest double along axis %d (from %.17g to "
+                "%.17g): their differences overflow",
+                who, axis, low, high);
+  throw std::invalid_argument(text);
+}
+
 BoxGeometry::BoxGeometry(const Box& box) {
   detail::check_box(box);
   if (!box.periodic) return;
@@ -361,14 +371,7 @@ CellLists build_cell_lists(const ParticleStore& particles, const Box& box, doubl
     low[k] = lo;
     high[k] = hi;
     // Open boundaries: differences of centres must be finite.
-    if (!std::isfinite(hi - lo)) {
-      char text[200];
-      std::snprintf(text, sizeof text,
-                    "screen_pairs: the centres span more than the largest double along axis %d "
-                    "(from %.17g to %.17g): their differences overflow",
-                    k, lo, hi);
-      throw std::invalid_argument(text);
-    }
+    check_centres_span("screen_pairs", k, lo, hi);
   }
   lists.origin = low;
   lists.cutoff = cutoff;

@@ -101,6 +101,11 @@ struct ClassGrid {
 // the planes of the other two lattice vectors), so that the cells within a
 // reach of a member along each cell-space axis hold every partner within
 // that reach, whatever the tilts.
+// Along an open axis the differences of centres from `low` to `high` must
+// be finite: std::invalid_argument ("<who>: the centres span more than the
+// largest double ...") otherwise.
+void check_centres_span(const char* who, int axis, double low, double high);
+
 struct BoxGeometry {
   std::array<bool, 3> periodic = {false, false, false};
   bool triclinic = false;            // periodic with a tilt

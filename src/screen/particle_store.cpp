@@ -68,19 +68,15 @@ void check_box(const Box& box) {
 Box Box::periodic_box(double lx, double ly, double lz) { return triclinic(lx, ly, lz, 0, 0, 0); }
 
 Box Box::triclinic(double lx, double ly, double lz, double xy, double xz, double yz) {
-  check_lengths({lx, ly, lz});
-  check_tilts({xy, xz, yz});
   Box box;
   box.periodic = true;
   box.length = {lx, ly, lz};
   box.tilt = {xy, xz, yz};
-  detail::check_box(box);
+  detail::check_box(box);  // (lengths, tilts, lattice vectors, widths)
   return box;
 }
 
 Box Box::two_dimensional_box(double lx, double ly, double xy) {
-  check_lengths({lx, ly});
-  check_tilts({xy});
   Box box;
   box.periodic = true;
   box.two_dimensional = true;
