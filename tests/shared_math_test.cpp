@@ -401,5 +401,52 @@ TEST(SharedMath, PackedLanesAreScaledAsLoadedLanesInFloat) {
   expect_packed_lanes_scaled_as_loaded<float>(pairs_at_every_scale());
 }
 
+// The polynomial form of the contact function (doc/theory.md eq. 46), which
+// the full kernel's cold first pass steps on before its first factorised
+// evaluation, against the quad-precision table: its steps from the radial
+// guess converge to lambda*, and the radial guess is exact for spheres. The
+// random and pw85 families are conditioned to 1e1 and 2.5e5: lambda* to
+// 1e-12 and 1e-8 of its distance to 0 or 1 (the coefficients carry the
+// cofactors' rounding, ~eps cond, and the maximiser of a flat f moves by
+// more than the rounding of f; the answer never comes from this form).
+// Every pair must settle within 16 steps, as far as the kernel ever takes.
+TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
+  const pwtest::ReferenceTable table = pwtest::load_reference_pairs();
+  ASSERT_TRUE(table.error.empty()) << table.error;
+  int checked = 0;
+  for (const pwtest::ReferenceRecord& record : table.records) {
+    const bool random = record.family == "random";
+    if (!random && record.family != "pw85") continue;
+    const Pair<double>& pair = record.pair;
+    kernel::PairLanes<B> p;
+    broadcast(pair.r12.data(), 3, p.r);
+    broadcast(pair.q1.data(), 6, p.q1);
+    broadcast(pair.q2.data(), 6, p.q2);
+    const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
+    const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
+    B lambda = polynomials.radial_guess(), lo(0), hi(1);
+    for (int step = 0; step < 16; ++step) polynomials.step(lambda, lo, hi);
+    const double expected = double(record.lambda);
+    const double width = std::min(expected, 1 - expected);
+    const double tolerance = (random ? 1e-12 : 1e-8) * width;
+    EXPECT_NEAR(lambda.get(0), expected, tolerance)
+        << record.family << " pair " << checked << ": mu^2 " << double(record.mu2);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 2000);
+  // Spheres of radii a and b: lambda* = a / (a + b) from the guess alone.
+  for (const auto& [a, b] : {std::pair{1.0, 2.0}, std::pair{0.3, 7.0}, std::pair{5.0, 5.0}}) {
+    kernel::PairLanes<B> p;
+    const double r[3] = {0.3, -1.1, 2.0};
+    const Form q1{a * a, 0, 0, a * a, 0, a * a}, q2{b * b, 0, 0, b * b, 0, b * b};
+    broadcast(r, 3, p.r);
+    broadcast(q1.data(), 6, p.q1);
+    broadcast(q2.data(), 6, p.q2);
+    const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
+    const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
+    EXPECT_NEAR(polynomials.radial_guess().get(0), a / (a + b), 4e-16) << a << ", " << b;
+  }
+}
+
 }  // namespace
 }  // namespace pwtest
