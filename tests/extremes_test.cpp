@@ -343,6 +343,24 @@ TEST_P(Extremes, ScalingByPowersOfTwoTo1e144ChangesNoBitInAnyPrecision) {
                                                     Precision::single_precision);
 }
 
+TEST_P(Extremes, ScalingWithinTheBandSolvedAsGivenChangesNoBitOfFarOrNearPairs) {
+  // Forms with diagonals up to 2^+-100 are solved as given (unless another
+  // lane of the register is outside), so a pair there must give the bits it
+  // gives at scale 1. The products of a cold start's polynomial steps reach
+  // degree 18 in the length scale: the pairs 2^+-60 farther or nearer than
+  // the family's (slopes ~2^+-120) scaled by 2^+-49 (diagonals to 2^+-100)
+  // took them beyond double's range (was: overflow and underflow, the steps
+  // bisected, 1-3 ulp apart in mu^2 and lambda from the unscaled answers).
+  for (double apart : {0x1p60, 0x1p-60}) {
+    auto pairs = pairs_to_scale();
+    for (auto& p : pairs)
+      for (double& x : p.r12) x *= apart;
+    for (int exponent : {-49, 49})
+      expect_power_of_two_scale_changes_no_bit<double>(pairs, exponent, GetParam(),
+                                                       Precision::double_precision);
+  }
+}
+
 // The answers for k r12, k^2 Q against the reference path on the unscaled
 // pairs: mu2 and lambda as they are, the contact point divided by k, the
 // gradient multiplied by k.

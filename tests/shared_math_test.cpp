@@ -409,11 +409,15 @@ TEST(SharedMath, PackedLanesAreScaledAsLoadedLanesInFloat) {
 // 1e-12 and 1e-8 of its distance to 0 or 1 (the coefficients carry the
 // cofactors' rounding, ~eps cond, and the maximiser of a flat f moves by
 // more than the rounding of f; the answer never comes from this form).
-// Every pair must settle within 16 steps, as far as the kernel ever takes.
+// The random family must settle within the steps the kernel takes at most
+// before its factorised check (3 and polynomial_extra_steps); pw85 pairs the
+// kernel leaves unsettled go on in factorised passes (measured: 48 of its
+// 1,000 here after 9 steps, none after 24), so there the form is held to
+// lambda* after 24 steps, and most pairs to the kernel's 9.
 TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
   const pwtest::ReferenceTable table = pwtest::load_reference_pairs();
   ASSERT_TRUE(table.error.empty()) << table.error;
-  int checked = 0;
+  int checked = 0, pw85_settled_in_kernel = 0;
   for (const pwtest::ReferenceRecord& record : table.records) {
     const bool random = record.family == "random";
     if (!random && record.family != "pw85") continue;
@@ -424,15 +428,23 @@ TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
     broadcast(pair.q2.data(), 6, p.q2);
     const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
     const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
-    B lambda = polynomials.radial_guess(), lo(0), hi(1);
-    for (int step = 0; step < 16; ++step) polynomials.step(lambda, lo, hi);
     const double expected = double(record.lambda);
     const double width = std::min(expected, 1 - expected);
     const double tolerance = (random ? 1e-12 : 1e-8) * width;
+    B lambda = polynomials.radial_guess(), lo(0), hi(1);
+    const int in_kernel = 3 + kernel::polynomial_extra_steps;
+    for (int step = 0; step < (random ? in_kernel : 24); ++step) {
+      polynomials.step(lambda, lo, hi);
+      if (!random && step + 1 == in_kernel && std::abs(lambda.get(0) - expected) <= tolerance)
+        ++pw85_settled_in_kernel;
+    }
     EXPECT_NEAR(lambda.get(0), expected, tolerance)
         << record.family << " pair " << checked << ": mu^2 " << double(record.mu2);
     ++checked;
   }
+  std::printf("[ measured ] pw85 pairs settled within the kernel's %d steps: %d of 1000\n",
+              3 + kernel::polynomial_extra_steps, pw85_settled_in_kernel);
+  EXPECT_GE(pw85_settled_in_kernel, 900);
   EXPECT_EQ(checked, 2000);
   // Spheres of radii a and b: lambda* = a / (a + b) from the guess alone.
   for (const auto& [a, b] : {std::pair{1.0, 2.0}, std::pair{0.3, 7.0}, std::pair{5.0, 5.0}}) {

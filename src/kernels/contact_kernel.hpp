@@ -51,7 +51,7 @@ PWCONTACT_INLINE int first_pass_evaluations(const ChunkSettings& settings) {
 // factorised steps of a cold first pass in automatic mode, in double at
 // standard accuracy, Newton in lambda: as many as that pass takes before its
 // last evaluation, so that the lanes reach the same convergence check, each
-// counted as an evaluation; 0 elsewhere. A group whose last step still moved
+// counted as an evaluation; 0 elsewhere. A lane whose last step still moved
 // lambda by more than polynomial_settled of its distance to 0 or 1 (Newton is
 // then not yet in its quadratic phase: elongated shapes) takes up to
 // polynomial_extra_steps more. Measured (1M random pairs and the pw85
@@ -345,11 +345,11 @@ class FullBlock : public LaneGroups<Arch, T> {
   }
 
   // A cold first pass's block in double (polynomial_steps): the checks from
-  // adjugates (start_from's, with start's factorised ones for a register
-  // with a lane they refuse: together they take the lanes start takes), then
-  // `steps` safeguarded Newton steps on the polynomial form (eq. 46) from the
-  // radial guess, and up to polynomial_extra_steps more for a group whose
-  // last step was not yet negligible. The bracket they narrow is not kept:
+  // adjugates (start_from's), and for a register with a lane they refuse
+  // start's factorised ones too (a lane either takes is taken: every lane
+  // start takes), then `steps` safeguarded Newton steps on the polynomial
+  // form (eq. 46) from the radial guess, and up to polynomial_extra_steps
+  // more for a lane whose last step was not yet negligible. The bracket they narrow is not kept:
   // their signs are not the factorised evaluation's, and the convergence
   // test's bound needs a bracket that surely holds lambda*.
   template <class In>

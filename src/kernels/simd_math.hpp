@@ -238,6 +238,15 @@ struct ContactPolynomials {
     const B m12 = a[1] * b[2] + b[1] * a[2] - a[0] * b[4] - b[0] * a[4];
     n[1] = m00 * r[0] * r[0] + m11 * r[1] * r[1] + m22 * r[2] * r[2] +
            B(2) * (m01 * r[0] * r[1] + m02 * r[0] * r[2] + m12 * r[1] * r[2]);
+    // A step's products are of degree 18 in the length scale (h D), beyond
+    // the range the unscaled lanes keep clear (degree 12, see
+    // KernelTolerance<double>::safe_scale_low): D and N are brought near 1 by
+    // powers of two (exact), on which the step, of degree 0 in each, does
+    // not depend. The same bits whether or not the pair was nondimensionalised.
+    const B d_scale = reciprocal_power_of_two(d[0] + d[3]);
+    const B n_scale = reciprocal_power_of_two(n[0] + n[2]);
+    for (B& c : d) c *= d_scale;
+    for (B& c : n) c *= n_scale;
   }
 
   // The radial guess (eq. 30) from s1 / s2 = n0 d3 / (n2 d0) (eq. 16:
@@ -278,6 +287,21 @@ struct ContactPolynomials {
   }
 
  private:
+  // 2^-e for x = m 2^e (m in [1, 2)) normal and positive, from the exponent
+  // bits; 1 elsewhere (0, subnormal, infinite or NaN sums: such a lane's
+  // steps are noise or NaN, and its factorised check decides).
+  static B reciprocal_power_of_two(const B& x) {
+    using T = typename B::value_type;
+    using I = xsimd::batch<xsimd::as_integer_t<T>, typename B::arch_type>;
+    constexpr int mantissa_bits = std::numeric_limits<T>::digits - 1;
+    constexpr int bias = std::numeric_limits<T>::max_exponent - 1;
+    const I biased = xsimd::bitwise_cast<I>(x) >> mantissa_bits;
+    const B power = xsimd::bitwise_cast<B>((I(2 * bias) - biased) << mantissa_bits);
+    const auto normal =
+        (x >= B(std::numeric_limits<T>::min())) & (x <= B(std::numeric_limits<T>::max()));
+    return xsimd::select(normal, power, B(1));
+  }
+
   // tr(adj(Q) S) for symmetric S.
   static B trace_of_product(const Adjugate<B>& c, const B s[6]) {
     return c.c00 * s[0] + c.c11 * s[3] + c.c22 * s[5] +
