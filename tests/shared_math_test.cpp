@@ -410,7 +410,9 @@ TEST(SharedMath, PackedLanesAreScaledAsLoadedLanesInFloat) {
 // cofactors' rounding, ~eps cond, and the maximiser of a flat f moves by
 // more than the rounding of f; the answer never comes from this form).
 // The random family must settle within the steps the kernel takes at most
-// before its factorised check (3 and polynomial_extra_steps); pw85 pairs the
+// before its factorised check (3 with lambda asked for, and
+// polynomial_extra_steps; the test takes them all, without the kernel's stop
+// for a lane that has settled); pw85 pairs the
 // kernel leaves unsettled go on in factorised passes (measured: 48 of its
 // 1,000 here after 9 steps, none after 24), so there the form is held to
 // lambda* after 24 steps, and most pairs to the kernel's 9.
