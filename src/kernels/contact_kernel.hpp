@@ -331,14 +331,12 @@ class FullBlock : public LaneGroups<Arch, T> {
       // whichever: those of the mixed-precision double block (the entries'
       // range, without the slopes) let lanes of forms with entries near
       // 1e-300 through to answers 30 % wrong.
-      const B guess = first_guess(in, from + std::size_t(u) * W, s1, s2);
-      lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+      lambda_[u] = interior_or_midpoint(first_guess(in, from + std::size_t(u) * W, s1, s2));
       lo_[u] = B(0);
       hi_[u] = B(1);
       // Coincident centres: mu^2 = 0.
       const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
-      live_[u] = this->usable(u) & positive_definite(f1, p.q1) & positive_definite(f2, p.q2) &
-                 (coincident | slopes_in_range(s1, s2));
+      live_[u] = this->usable(u) & factorised_checks(p, f1, f2, s1, s2, coincident);
       coincident_[u] = live_[u] & coincident;
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
@@ -362,17 +360,14 @@ class FullBlock : public LaneGroups<Arch, T> {
       const Adjugate<B> a1(p.q1), a2(p.q2);
       const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
       const M usable = this->usable(u);
-      M live = usable & in_range<T>(p) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
-               (coincident | slopes_surely_in_range(p, a1.det, a2.det));
+      M live = usable & adjugate_checks(p, a1, a2, coincident);
       if (xsimd::any(usable & !live)) {
         const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
         const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
-        live = live | (usable & positive_definite(f1, p.q1) & positive_definite(f2, p.q2) &
-                       (coincident | slopes_in_range(s1, s2)));
+        live = live | (usable & factorised_checks(p, f1, f2, s1, s2, coincident));
       }
       polynomials[u] = ContactPolynomials<B>(p.r, p.q1, p.q2, a1, a2);
-      const B guess = polynomials[u].radial_guess();
-      lambda_[u] = xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+      lambda_[u] = interior_or_midpoint(polynomials[u].radial_guess());
       lo_[u] = B(0);
       hi_[u] = B(1);
       live_[u] = live;
@@ -401,7 +396,7 @@ class FullBlock : public LaneGroups<Arch, T> {
         this->counters_.lane_evaluations += count_lanes<Arch, T>(going);
       }
       // (NaN from a lane whose coefficients overflowed: the midpoint.)
-      lambda_[u] = xsimd::select((lambda_[u] > B(0)) & (lambda_[u] < B(1)), lambda_[u], B(0.5));
+      lambda_[u] = interior_or_midpoint(lambda_[u]);
       lo_[u] = B(0);
       hi_[u] = B(1);
     }
@@ -442,14 +437,12 @@ class FullBlock : public LaneGroups<Arch, T> {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
       const B start = B::load_unaligned(lambda_start + std::size_t(u) * W);
-      lambda_[u] = xsimd::select((start > B(0)) & (start < B(1)), start, B(0.5));
+      lambda_[u] = interior_or_midpoint(start);
       lo_[u] = B(0);
       hi_[u] = B(1);
       const Adjugate<B> a1(p.q1), a2(p.q2);
       const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
-      const M live = this->usable(u) & in_range<T>(p) & a1.positive_definite(p.q1) &
-                     a2.positive_definite(p.q2);
-      live_[u] = live & (coincident | slopes_surely_in_range(p, a1.det, a2.det));
+      live_[u] = this->usable(u) & adjugate_checks(p, a1, a2, coincident);
       coincident_[u] = live_[u] & coincident;
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
@@ -555,6 +548,29 @@ class FullBlock : public LaneGroups<Arch, T> {
   }
 
  private:
+  // A first lambda strictly inside (0, 1), the midpoint otherwise (NaN, or
+  // a guess rounded onto an end).
+  PWCONTACT_INLINE static B interior_or_midpoint(const B& lambda) {
+    return xsimd::select((lambda > B(0)) & (lambda < B(1)), lambda, B(0.5));
+  }
+
+  // The cold start's checks of a lane (beside usable()), from the
+  // factorisations and the slopes s_i = r^T Qi^-1 r.
+  PWCONTACT_INLINE static M factorised_checks(const PairLanes<B>& p, const Ldlt<B>& f1,
+                                              const Ldlt<B>& f2, const B& s1, const B& s2,
+                                              const M& coincident) {
+    return positive_definite(f1, p.q1) & positive_definite(f2, p.q2) &
+           (coincident | slopes_in_range(s1, s2));
+  }
+
+  // A sufficient form of them from adjugates and determinants (double lanes):
+  // the entries' range, definiteness, and slopes_surely_in_range.
+  PWCONTACT_INLINE static M adjugate_checks(const PairLanes<B>& p, const Adjugate<B>& a1,
+                                            const Adjugate<B>& a2, const M& coincident) {
+    return in_range<T>(p) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
+           (coincident | slopes_surely_in_range(p, a1.det, a2.det));
+  }
+
   // Initial guess exact for spheres: lambda = rho1 / (rho1 + rho2), rho_i the
   // distance from centre i to its surface along r12, from s_i = r^T Qi^-1 r
   // (f'(0) = s1, -f'(1) = s2; see the reference path):
@@ -566,7 +582,7 @@ class FullBlock : public LaneGroups<Arch, T> {
     const Adjugate<B> adj1(p.q1), adj2(p.q2);
     const B ratio = (adj1.form(p.r) * adj2.det) / (adj2.form(p.r) * adj1.det);
     const B guess = B(1) / (B(1) + xsimd::sqrt(ratio));
-    return xsimd::select((guess > B(0)) & (guess < B(1)), guess, B(0.5));
+    return interior_or_midpoint(guess);
   }
 
   // The radial guess from s_i = r^T Qi^-1 r: exact for spheres (see
