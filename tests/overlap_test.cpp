@@ -242,6 +242,77 @@ TEST(OverlapFallback, IllConditionedPairsNearTangencyAreDecidedOnTheirSide) {
     }
 }
 
+// Pairs symmetric about the plane halfway between their centres: r12 along
+// x and Q2 the mirror image of Q1 (the signs of its xy and xz entries
+// flipped, exact in floating point), as in the pw85 family. Their lambda* is
+// 1/2, where the radial guess lands, and g is exactly 0 there. Discs and
+// needles of aspect ratio 10 .. 500, overlapping (mu^2 in [0.01, 0.8], where
+// the radial bound, eq. 31, decides little: r12 crosses the thin
+// directions) and apart (mu^2 in [1.25, 4]). Was: a lane with g = 0 kept
+// the upper bound of its first guess and took the same evaluation again up
+// to the cap of 40, then the reference path (1,216 pairs of the pw85
+// family, all overlapping, mu^2 ~ 0.002 .. 0.13); the scalar certificates
+// left such pairs undecided. The horizontal tangent there bounds mu^2 by f.
+Classified mirror_symmetric_pairs() {
+  Engine engine(98);
+  std::vector<Pair<double>> shapes;
+  for (int k = 0; k < 2000; ++k) {
+    const double aspect = std::pow(10.0, 1 + 1.7 * uniform01(engine));
+    const Eigen::Vector3d axes =
+        k % 2 ? Eigen::Vector3d(1, 1, aspect) : Eigen::Vector3d(aspect, aspect, 1);
+    const Eigen::Matrix3d rotation = random_rotation(engine);
+    Pair<double> p;
+    p.r12 = {1, 0, 0};
+    p.q1 = pack(rotation * axes.cwiseProduct(axes).asDiagonal() * rotation.transpose());
+    p.q2 = p.q1;
+    p.q2[1] = -p.q1[1];  // (x -> -x: Q2 = P Q1 P with P = diag(-1, 1, 1))
+    p.q2[2] = -p.q1[2];
+    shapes.push_back(p);
+  }
+  const auto base = long_double_oracles(shapes);
+  std::vector<Pair<double>> pairs;
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const long double u = (long double)uniform01(engine);
+    const long double target = i % 2 ? std::pow(80.0L, u) / 100 : 1.25L * std::pow(3.2L, u);
+    pairs.push_back(scaled_to_mu2(shapes[i], base[i].mu2, target));
+  }
+  return with_oracle(std::move(pairs));
+}
+
+TEST(OverlapSymmetric, PairsSymmetricAboutTheMidplaneAreDecidedByTheKernels) {
+  Classified f = mirror_symmetric_pairs();
+  f.batch = make_batch(f.pairs);
+  for (Isa isa : isas())
+    for (int kind = 0; kind < 3; ++kind) {
+      const Precision precision = kind == 1 ? Precision::mixed : Precision::double_precision;
+      const bool float_pairs = kind == 2;  // (rounding keeps the mirror exact)
+      const std::string what = std::string("pairs symmetric about the midplane, ") +
+                               pwcontact::isa_name(isa) + ", " +
+                               (float_pairs ? "float pairs" : pwcontact::precision_name(precision));
+      const OverlapRun run =
+          float_pairs ? run_overlap(pwcontact::to_float(f.batch), with_isa(isa, 0), 1.0)
+                      : run_overlap(f.batch, with_precision(with_isa(isa, 0), precision), 1.0);
+      const Classification c = classify(run, f.mu2, 1.0);
+      std::printf("[ measured ] %s: %zu wrong, %zu by the reference, %.2f evaluations per pair\n",
+                  what.c_str(), c.wrong, run.report.fallbacks, run.report.mean_evaluations);
+      EXPECT_EQ(c.malformed, 0u) << what;
+      EXPECT_EQ(c.wrong, 0u) << what << ", first pair " << c.first_wrong;
+      // mu^2 is at least 20 % from the cutoff, beyond any margin (256 eps times
+      // growths up to ~1e6 in double): nothing is left to the reference path.
+      if (isa != Isa::fallback && !on_portable_target())
+        EXPECT_EQ(run.report.fallbacks, 0u) << what << ": pairs left to the reference path";
+    }
+  for (std::size_t i = 0; i < f.pairs.size(); ++i) {
+    const Pair<double>& p = f.pairs[i];
+    const pwcontact::screen::Certified answer =
+        pwcontact::screen::certify_overlap(p.r12.data(), p.q1.data(), p.q2.data(), 1.0);
+    ASSERT_NE(answer, pwcontact::screen::Certified::undecided)
+        << "scalar certificates, pair " << i << ": mu2 " << double(f.mu2[i]);
+    EXPECT_EQ(answer == pwcontact::screen::Certified::overlapping, f.mu2[i] < 1)
+        << "scalar certificates, pair " << i;
+  }
+}
+
 class Overlap : public ::testing::TestWithParam<std::tuple<FamilyName, Isa>> {};
 
 TEST_P(Overlap, AgreesWithTheExactClassificationOutsideTheDocumentedBand) {

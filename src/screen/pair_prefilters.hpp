@@ -336,9 +336,11 @@ inline Certified certify_overlap(const double r12[3], const double q1_given[6],
     margin = std::max(margin, margin_per_growth * at.growth);
     lower = std::max(lower, at.f * (1 - margin));  // eq. 27
     if (lower >= cutoff2) return Certified::apart;
-    if (at.g > 0) {
+    // g = 0 makes lambda the upper end, with a horizontal tangent: the
+    // crossing is then f itself (kernels::ends_after).
+    if (at.g >= 0) {
       hi = lambda, f_hi = at.f, g_hi = at.g;
-    } else if (at.g < 0) {
+    } else {
       lo = lambda, f_lo = at.f, g_lo = at.g;
     }
     // Eq. 29: where the tangents at the bracket's ends cross.
