@@ -40,13 +40,30 @@ namespace pwcontact::kernels::PWCONTACT_TARGET {
 template <class T>
 inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>::epsilon();
 
-// The cheap first pass decides only lanes whose Q both have tr^3 / det (a
-// bound on the condition number) at most this (see OverlapBlock::prefilter),
-// with a margin of 256 eps times it: double up to aspect ratios ~100, float
-// up to the random family's shapes (semi-axes within a factor 4: tr^3 / det
-// up to 140).
+// The cheap first pass decides lanes whose Q both have tr^3 / det (a bound
+// on the condition number) at most this with a margin of 256 eps times it
+// (see OverlapBlock::prefilter): double up to aspect ratios ~100, float up
+// to most of the random family's shapes (semi-axes within a factor 4:
+// tr^3 / det up to 364, for semi-axes 0.5, 0.5 and 2; 0.09 % of its forms
+// are beyond 256).
 template <class T>
 inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e6) : T(256);
+// A lane the trace test or its range refuses takes its own margin instead,
+// 256 eps times the ratio rho of the magnitudes cancelled in n_i, det Qi and
+// H_i to their values (eq. 47), when that margin is at most this: the
+// first-order error it covers, at most ~20 eps rho, is then at most ~0.04.
+// Such a lane is decided by the extents only (its evaluation would need the
+// trace test's range argument).
+inline constexpr double prefilter_largest_margin = 0.5;
+// The range of such a lane: n_i, det Qi, H_i and |r|^2 within
+// [floor, 1 / floor], so that their products (n1 n2, n_i det Qj, |r|^4) are
+// normal numbers, and the larger trace below `top`, so that nothing formed
+// on the way (cofactors, magnitudes) overflows; an underflow on the way
+// errs by at most the smallest subnormal, far below eps floor.
+template <class T>
+inline constexpr T prefilter_floor = std::is_same<T, double>::value ? T(0x1p-400) : T(0x1p-60);
+template <class T>
+inline constexpr T prefilter_top = std::is_same<T, double>::value ? T(0x1p100) : T(0x1p12);
 // How far ahead the prefilter asks for its inputs, in blocks (measured).
 inline constexpr std::size_t prefilter_prefetch_blocks = 8;
 
@@ -102,6 +119,21 @@ PWCONTACT_INLINE CertifiedBounds<B> extent_bounds(const B& rr, const B& h1, cons
   const B upper = radial * (B(1) + margin);
   return {lower, xsimd::select(coincident, B(0), upper), margin};
 }
+
+// The radial bound (eq. 31) from n_i = r^T adj(Qi) r and det Qi, with
+// s_i = n_i / det_i: 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 =
+// n1 n2 / (sqrt(n1 det2) + sqrt(n2 det1))^2, and the guess at its maximiser
+// (eq. 30), without a division per slope.
+template <class B>
+struct RadialExtents {
+  B bound, guess;
+  RadialExtents(const B& n1, const B& n2, const B& det1, const B& det2) {
+    const B root = xsimd::sqrt(n2 * det1);
+    const B extents = xsimd::sqrt(n1 * det2) + root;
+    bound = n1 * n2 / (extents * extents);
+    guess = root / extents;
+  }
+};
 
 // The bracket ends after evaluation e, as the safeguarded step narrows the
 // bracket (eq. 20: g > 0 makes lambda the upper end, g < 0 the lower). g = 0
@@ -242,6 +274,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   PWCONTACT_INLINE void prefilter(const PairSpan<In>& in, std::size_t from, std::size_t position,
                                   std::size_t real, const OverlapSpan& out) {
     const B conditioning(prefilter_conditioning<T>);
+    M own_lanes[U];
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
@@ -251,15 +284,16 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const M conditioned =
           (t1 * t1 * t1 <= conditioning * a1.det) & (t2 * t2 * t2 <= conditioning * a2.det);
       const B rr = dot3(p.r, p.r);
-      live_[u] = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2) &
-                 conditioned & prefilter_in_range(t1, t2, rr);
+      const M usable = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2);
+      live_[u] = usable & conditioned & prefilter_in_range(t1, t2, rr);
+      // The lanes the trace test or its range refuses: their own margins,
+      // after the block (own_extent_bounds).
+      own_lanes[u] = usable & !live_[u];
       const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);  // eq. 41
-      // The radial bound (eq. 31) with s_i = n_i / det_i, n_i = r^T adj(Qi) r:
-      // 1 / (1/sqrt(s1) + 1/sqrt(s2))^2 = n1 n2 / (sqrt(n1 det2) + sqrt(n2 det1))^2.
+      // n_i = r^T adj(Qi) r, so that s_i = n_i / det_i.
       const B n1 = a1.form(p.r), n2 = a2.form(p.r);
-      const B extents = xsimd::sqrt(n1 * a2.det) + xsimd::sqrt(n2 * a1.det);
-      const B radial = n1 * n2 / (extents * extents);
-      set_bounds(u, extent_bounds(rr, h1, h2, radial, margin, rr == B(0)));
+      const RadialExtents<B> radial(n1, n2, a1.det, a2.det);
+      set_bounds(u, extent_bounds(rr, h1, h2, radial.bound, margin, rr == B(0)));
       live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter, true);
       if (xsimd::none(live_[u])) continue;
 
@@ -268,7 +302,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       // ends (one of them at lambda = 0 or 1, with slope s1 = n1 / det1 or
       // s2 = n2 / det2, whose rounding the margin already covers).
       const B slope0 = n1 / a1.det, slope1 = n2 / a2.det;
-      lambda_[u] = xsimd::sqrt(n2 * a1.det) / extents;
+      lambda_[u] = radial.guess;
       lo_[u] = B(0);
       hi_[u] = B(1);
       f_lo_[u] = B(0);
@@ -278,6 +312,17 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       tighten(u);  // (with the margin set above: the prefilter's, eq. 41)
       counters_.lane_evaluations += at_[u].real;
       decide_only(u, out, &ChunkCounters::decided_by_certificate);
+    }
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
+      if (xsimd::none(own_lanes[u])) continue;
+      // (A copy: were the block's own pair passed, it could not be kept in
+      // registers through the loop above, measured 5-10 % slower on the
+      // scene family, whose registers seldom come here.)
+      const PairLanes<B> pair = pair_[u];
+      const OwnExtents own = own_extent_bounds(pair, own_lanes[u]);
+      live_[u] = own.taken;
+      set_bounds(u, own.bounds);
+      decide_only(u, out, &ChunkCounters::decided_by_prefilter);
     }
   }
 
@@ -329,6 +374,50 @@ class OverlapBlock : public LaneGroups<Arch, T> {
     const B t_max = xsimd::max(t1, t2);
     return (xsimd::min(t1, t2) >= ratio * t_max) & (rr >= low * t_max) & (rr <= high * t_max) &
            (t_max >= smallest) & (t_max <= largest);
+  }
+
+  // The cheap pass for the lanes the trace test refuses (elongated shapes)
+  // or whose range it does not take (sizes far apart): the extents only
+  // (eqs. 31, 32), with the lane's own margin (eq. 47), 256 eps times rho,
+  // the largest ratio of the magnitudes cancelled in n_i, det Qi and H_i
+  // (Adjugate::form_magnitude, det_magnitude; |r|^T |Qi| |r|) to their
+  // computed values, which their rounding errors are at most gamma_9,
+  // gamma_6 and gamma_6 of. A candidate lane is taken when that margin is
+  // at most prefilter_largest_margin and its numbers lie within
+  // prefilter_floor and prefilter_top. Out of line, after the block, from
+  // the pair alone: inlined into the block's loop it made the scene family's
+  // cheap pass 5-10 % slower (interleaved runs), though 1.4 % of its float
+  // registers and none of its double ones hold such a lane.
+  struct OwnExtents {
+    CertifiedBounds<B> bounds;
+    M taken;
+  };
+  __attribute__((noinline)) static OwnExtents own_extent_bounds(const PairLanes<B>& p,
+                                                                M candidates) {
+    const Adjugate<B> a1(p.q1), a2(p.q2);
+    const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
+    const B n1 = a1.form(p.r), n2 = a2.form(p.r);
+    const B rr = dot3(p.r, p.r);
+    const B t_max = xsimd::max(p.q1[0] + p.q1[3] + p.q1[5], p.q2[0] + p.q2[3] + p.q2[5]);
+    B abs_r[3], abs_q1[6], abs_q2[6];
+    for (int k = 0; k < 3; ++k) abs_r[k] = xsimd::abs(p.r[k]);
+    for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
+    const B rho = xsimd::max(
+        xsimd::max(xsimd::max(Adjugate<B>::form_magnitude(p.q1, abs_r) / n1,
+                              Adjugate<B>::form_magnitude(p.q2, abs_r) / n2),
+                   xsimd::max(Adjugate<B>::det_magnitude(p.q1) / a1.det,
+                              Adjugate<B>::det_magnitude(p.q2) / a2.det)),
+        xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2));
+    const B margin = B(certificate_margin_per_growth<T>) * rho;
+    const B floor(prefilter_floor<T>), ceiling(T(1) / prefilter_floor<T>);
+    const B smallest = xsimd::min(xsimd::min(xsimd::min(n1, n2), xsimd::min(a1.det, a2.det)),
+                                  xsimd::min(xsimd::min(h1, h2), rr));
+    const B largest = xsimd::max(xsimd::max(xsimd::max(n1, n2), xsimd::max(a1.det, a2.det)),
+                                 xsimd::max(xsimd::max(h1, h2), rr));
+    const M taken = candidates & (smallest >= floor) & (largest <= ceiling) &
+                    (t_max <= B(prefilter_top<T>)) & (margin <= B(T(prefilter_largest_margin)));
+    const RadialExtents<B> radial(n1, n2, a1.det, a2.det);
+    return {extent_bounds(rr, h1, h2, radial.bound, margin, rr == B(0)), taken};
   }
 
   // One evaluation at lambda, a safeguarded step, and the bounds it gives

@@ -186,6 +186,28 @@ struct Adjugate {
     return c00 * r[0] * r[0] + c11 * r[1] * r[1] + c22 * r[2] * r[2] +
            B(2) * (c01 * r[0] * r[1] + c02 * r[0] * r[2] + c12 * r[1] * r[2]);
   }
+  // The magnitudes of what cancels in det: sum |a_i| C_i over the first row,
+  // C_i the sum of the magnitudes of cofactor i's two products (absolute
+  // values throughout: a negative a5 must not shrink it). Every cofactor
+  // errs by at most ~2 eps' units C_i (gamma_2 C_i), and det by gamma_6 this.
+  static B det_magnitude(const B a[6]) {
+    return a[0] * (xsimd::abs(a[3] * a[5]) + a[4] * a[4]) +
+           xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
+           xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
+  }
+  // The same for form(r): sum C_ij |r_i| |r_j| (off-diagonal terms twice);
+  // form(r) errs by at most gamma_9 this.
+  static B form_magnitude(const B a[6], const B abs_r[3]) {
+    const B m00 = xsimd::abs(a[3] * a[5]) + a[4] * a[4];
+    const B m11 = xsimd::abs(a[0] * a[5]) + a[2] * a[2];
+    const B m22 = xsimd::abs(a[0] * a[3]) + a[1] * a[1];
+    const B m01 = xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5]);
+    const B m02 = xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]);
+    const B m12 = xsimd::abs(a[1] * a[2]) + xsimd::abs(a[0] * a[4]);
+    return m00 * abs_r[0] * abs_r[0] + m11 * abs_r[1] * abs_r[1] + m22 * abs_r[2] * abs_r[2] +
+           B(2) *
+               (m01 * abs_r[0] * abs_r[1] + m02 * abs_r[0] * abs_r[2] + m12 * abs_r[1] * abs_r[2]);
+  }
   // Sylvester's criterion, beyond doubt: the leading principal minors a0,
   // a0 a3 - a1^2 and det above the rounding error of what cancels in them
   // (see definiteness_margin).
@@ -193,13 +215,9 @@ struct Adjugate {
     using T = typename B::value_type;
     const B margin(definiteness_margin<T>);
     // Every cofactor errs by at most ~2 eps the magnitudes of its two
-    // products, and det by ~5 eps the sum below (absolute values throughout:
-    // a negative a5 must not shrink the bound).
+    // products, and det by ~5 eps det_magnitude.
     const B minor_terms = a[0] * a[3] + a[1] * a[1];
-    const B det_terms = a[0] * (xsimd::abs(a[3] * a[5]) + a[4] * a[4]) +
-                        xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
-                        xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
-    return (a[0] > B(0)) & (c22 > margin * minor_terms) & (det > margin * det_terms);
+    return (a[0] > B(0)) & (c22 > margin * minor_terms) & (det > margin * det_magnitude(a));
   }
 };
 
