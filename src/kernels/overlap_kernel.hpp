@@ -275,6 +275,7 @@ class OverlapBlock : public LaneGroups<Arch, T> {
                                   std::size_t real, const OverlapSpan& out) {
     const B conditioning(prefilter_conditioning<T>);
     M own_lanes[U];
+    OwnInputs own_inputs[U];
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
@@ -287,13 +288,28 @@ class OverlapBlock : public LaneGroups<Arch, T> {
       const M usable = this->usable(u) & a1.positive_definite(p.q1) & a2.positive_definite(p.q2);
       live_[u] = usable & conditioned & prefilter_in_range(t1, t2, rr);
       // The lanes the trace test or its range refuses: their own margins,
-      // after the block (own_extent_bounds).
+      // after the block (own_margin).
       own_lanes[u] = usable & !live_[u];
       const B margin(certificate_margin_per_growth<T> * prefilter_conditioning<T>);  // eq. 41
       // n_i = r^T adj(Qi) r, so that s_i = n_i / det_i.
       const B n1 = a1.form(p.r), n2 = a2.form(p.r);
       const RadialExtents<B> radial(n1, n2, a1.det, a2.det);
-      set_bounds(u, extent_bounds(rr, h1, h2, radial.bound, margin, rr == B(0)));
+      // The extents without their margin (exact: times 1), and with it.
+      const CertifiedBounds<B> extents = extent_bounds(rr, h1, h2, radial.bound, B(0), rr == B(0));
+      set_bounds(u, {extents.lower * (B(1) - margin), extents.upper * (B(1) + margin), margin});
+      if (xsimd::any(own_lanes[u])) {
+        own_inputs[u] = {p,
+                         n1,
+                         n2,
+                         a1.det,
+                         a2.det,
+                         h1,
+                         h2,
+                         rr,
+                         xsimd::max(t1, t2),
+                         extents.lower,
+                         extents.upper};
+      }
       live_[u] = live_[u] & !decide_only(u, out, &ChunkCounters::decided_by_prefilter, true);
       if (xsimd::none(live_[u])) continue;
 
@@ -315,13 +331,13 @@ class OverlapBlock : public LaneGroups<Arch, T> {
     }
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       if (xsimd::none(own_lanes[u])) continue;
-      // (A copy: were the block's own pair passed, it could not be kept in
-      // registers through the loop above, measured 5-10 % slower on the
-      // scene family, whose registers seldom come here.)
-      const PairLanes<B> pair = pair_[u];
-      const OwnExtents own = own_extent_bounds(pair, own_lanes[u]);
-      live_[u] = own.taken;
-      set_bounds(u, own.bounds);
+      // (Copies, made above: were the block's own pair passed, it could not
+      // be kept in registers through the loop above, measured 5-10 % slower
+      // on the scene family, whose registers seldom come here.)
+      const B margin = own_margin(own_inputs[u]);
+      live_[u] = own_lanes[u] & (margin <= B(T(prefilter_largest_margin)));
+      set_bounds(u, {own_inputs[u].lower * (B(1) - margin), own_inputs[u].upper * (B(1) + margin),
+                     margin});
       decide_only(u, out, &ChunkCounters::decided_by_prefilter);
     }
   }
@@ -382,42 +398,39 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   // the largest ratio of the magnitudes cancelled in n_i, det Qi and H_i
   // (Adjugate::form_magnitude, det_magnitude; |r|^T |Qi| |r|) to their
   // computed values, which their rounding errors are at most gamma_9,
-  // gamma_6 and gamma_6 of. A candidate lane is taken when that margin is
-  // at most prefilter_largest_margin and its numbers lie within
-  // prefilter_floor and prefilter_top. Out of line, after the block, from
-  // the pair alone: inlined into the block's loop it made the scene family's
-  // cheap pass 5-10 % slower (interleaved runs), though 1.4 % of its float
-  // registers and none of its double ones hold such a lane.
-  struct OwnExtents {
-    CertifiedBounds<B> bounds;
-    M taken;
+  // gamma_6 and gamma_6 of; infinite unless n_i, det Qi, H_i and |r|^2 lie
+  // within prefilter_floor and its reciprocal and the larger trace below
+  // prefilter_top. A lane is taken when its margin is at most
+  // prefilter_largest_margin. Out of line, after the block, from copies of
+  // what the block computed: inlined into the block's loop it made the scene
+  // family's cheap pass 5-10 % slower (interleaved runs), though 1.4 % of
+  // its float registers and none of its double ones hold such a lane.
+  struct OwnInputs {
+    PairLanes<B> p;
+    B n1, n2, det1, det2, h1, h2, rr, t_max;
+    B lower, upper;  // the extents' bounds, without margin
   };
-  __attribute__((noinline)) static OwnExtents own_extent_bounds(const PairLanes<B>& p,
-                                                                M candidates) {
-    const Adjugate<B> a1(p.q1), a2(p.q2);
-    const B h1 = quadratic_form(p.q1, p.r), h2 = quadratic_form(p.q2, p.r);
-    const B n1 = a1.form(p.r), n2 = a2.form(p.r);
-    const B rr = dot3(p.r, p.r);
-    const B t_max = xsimd::max(p.q1[0] + p.q1[3] + p.q1[5], p.q2[0] + p.q2[3] + p.q2[5]);
+  __attribute__((noinline)) static B own_margin(const OwnInputs& in) {
+    const PairLanes<B>& p = in.p;
     B abs_r[3], abs_q1[6], abs_q2[6];
     for (int k = 0; k < 3; ++k) abs_r[k] = xsimd::abs(p.r[k]);
     for (int k = 0; k < 6; ++k) abs_q1[k] = xsimd::abs(p.q1[k]), abs_q2[k] = xsimd::abs(p.q2[k]);
     const B rho = xsimd::max(
-        xsimd::max(xsimd::max(Adjugate<B>::form_magnitude(p.q1, abs_r) / n1,
-                              Adjugate<B>::form_magnitude(p.q2, abs_r) / n2),
-                   xsimd::max(Adjugate<B>::det_magnitude(p.q1) / a1.det,
-                              Adjugate<B>::det_magnitude(p.q2) / a2.det)),
-        xsimd::max(quadratic_form(abs_q1, abs_r) / h1, quadratic_form(abs_q2, abs_r) / h2));
-    const B margin = B(certificate_margin_per_growth<T>) * rho;
+        xsimd::max(xsimd::max(Adjugate<B>::form_magnitude(p.q1, abs_r) / in.n1,
+                              Adjugate<B>::form_magnitude(p.q2, abs_r) / in.n2),
+                   xsimd::max(Adjugate<B>::det_magnitude(p.q1) / in.det1,
+                              Adjugate<B>::det_magnitude(p.q2) / in.det2)),
+        xsimd::max(quadratic_form(abs_q1, abs_r) / in.h1, quadratic_form(abs_q2, abs_r) / in.h2));
     const B floor(prefilter_floor<T>), ceiling(T(1) / prefilter_floor<T>);
-    const B smallest = xsimd::min(xsimd::min(xsimd::min(n1, n2), xsimd::min(a1.det, a2.det)),
-                                  xsimd::min(xsimd::min(h1, h2), rr));
-    const B largest = xsimd::max(xsimd::max(xsimd::max(n1, n2), xsimd::max(a1.det, a2.det)),
-                                 xsimd::max(xsimd::max(h1, h2), rr));
-    const M taken = candidates & (smallest >= floor) & (largest <= ceiling) &
-                    (t_max <= B(prefilter_top<T>)) & (margin <= B(T(prefilter_largest_margin)));
-    const RadialExtents<B> radial(n1, n2, a1.det, a2.det);
-    return {extent_bounds(rr, h1, h2, radial.bound, margin, rr == B(0)), taken};
+    const B smallest =
+        xsimd::min(xsimd::min(xsimd::min(in.n1, in.n2), xsimd::min(in.det1, in.det2)),
+                   xsimd::min(xsimd::min(in.h1, in.h2), in.rr));
+    const B largest = xsimd::max(xsimd::max(xsimd::max(in.n1, in.n2), xsimd::max(in.det1, in.det2)),
+                                 xsimd::max(xsimd::max(in.h1, in.h2), in.rr));
+    const M in_range =
+        (smallest >= floor) & (largest <= ceiling) & (in.t_max <= B(prefilter_top<T>));
+    return xsimd::select(in_range, B(certificate_margin_per_growth<T>) * rho,
+                         B(std::numeric_limits<T>::infinity()));
   }
 
   // One evaluation at lambda, a safeguarded step, and the bounds it gives
