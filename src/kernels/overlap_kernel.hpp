@@ -51,7 +51,8 @@ inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1
 // A lane the trace test or its range refuses takes its own margin instead,
 // 256 eps times the ratio rho of the magnitudes cancelled in n_i, det Qi and
 // H_i to their values (eq. 47), when that margin is at most this: the
-// first-order error it covers, at most ~20 eps rho, is then at most ~0.04.
+// first-order error it covers, at most ~28 eps rho with the rounding of a
+// double pair to float (mixed precision), is then at most ~0.06.
 // Such a lane is decided by the extents only (its evaluation would need the
 // trace test's range argument).
 inline constexpr double prefilter_largest_margin = 0.5;
