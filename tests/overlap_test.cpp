@@ -313,6 +313,93 @@ TEST(OverlapSymmetric, PairsSymmetricAboutTheMidplaneAreDecidedByTheKernels) {
   }
 }
 
+// Needles tip to tip and discs face to face on a shared axis, turned by one
+// random rotation: the extents along r12 (eqs. 31, 32) are exact for them,
+// so what keeps a decision on its side near tangency is the margin alone.
+// Their forms are beyond the cheap pass's trace test (needles of aspect 4
+// .. 16, tr^3 / det ~ a^4; discs of aspect 6 .. 160, ~8 a^2; double needles
+// to aspect 1000), so in float and mixed precision every lane takes its own
+// margin, 256 eps rho (eq. 47), where rho grows as ~0.2 a^4 (needles) and
+// ~0.6 a^2 (discs) and the rounding of the extents with it. mu^2 is 1 +- delta,
+// delta log-uniform in [1e-6, 0.3], across those margins; the oracle is the
+// 50-digit one on the pairs as each run reads them (float pairs rounded).
+// With a margin of 256 eps, without rho, float pairs and mixed precision
+// answer pairs on the wrong side.
+struct CoaxialFamily {
+  Classified pairs, as_float;
+};
+CoaxialFamily coaxial_elongated_pairs() {
+  Engine engine(99);
+  std::vector<Pair<double>> shapes;
+  for (int k = 0; k < 1200; ++k) {
+    const int kind = k % 3;  // needles, discs, long needles
+    const double spread = kind == 0 ? 4 : kind == 1 ? 6 : 16;
+    const double top = kind == 0 ? 16 : kind == 1 ? 160 : 1000;
+    auto aspect = [&] { return spread * std::pow(top / spread, uniform01(engine)); };
+    const double a = aspect(), b = aspect();
+    const Eigen::Matrix3d rotation = random_rotation(engine);
+    auto form = [&](double x) {
+      const Eigen::Vector3d axes = kind == 1 ? Eigen::Vector3d(1, x, x) : Eigen::Vector3d(x, 1, 1);
+      return pack(rotation * axes.cwiseProduct(axes).asDiagonal() * rotation.transpose());
+    };
+    Pair<double> p;
+    for (int d = 0; d < 3; ++d) p.r12[std::size_t(d)] = rotation(d, 0);
+    p.q1 = form(a);
+    p.q2 = form(b);
+    shapes.push_back(p);
+  }
+  const auto base = long_double_oracles(shapes);
+  std::vector<Pair<double>> pairs;
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const long double delta = 1e-6L * std::pow(3e5L, (long double)uniform01(engine));
+    pairs.push_back(scaled_to_mu2(shapes[i], base[i].mu2, i % 2 ? 1 + delta : 1 - delta));
+  }
+  CoaxialFamily out;
+  auto with_fifty_digits = [](std::vector<Pair<double>> set) {
+    Classified c{std::move(set), {}, {}};
+    for (const auto& result : fifty_digit_oracles(c.pairs)) {
+      EXPECT_EQ(result.status, Status::ok);
+      c.mu2.push_back(result.mu2);
+    }
+    c.batch = make_batch(c.pairs);
+    return c;
+  };
+  out.as_float = with_fifty_digits(convert_all<double>(convert_all<float>(pairs)));
+  out.pairs = with_fifty_digits(std::move(pairs));
+  return out;
+}
+
+TEST(OverlapOwnMargin, CoaxialElongatedPairsAreDecidedOnTheirSide) {
+  const CoaxialFamily f = coaxial_elongated_pairs();
+  for (Isa isa : isas())
+    for (int kind = 0; kind < 3; ++kind) {
+      const bool float_pairs = kind == 2;
+      const Precision precision = kind == 1 ? Precision::mixed : Precision::double_precision;
+      const Classified& set = float_pairs ? f.as_float : f.pairs;
+      const std::string what = std::string("coaxial needles and discs, ") +
+                               pwcontact::isa_name(isa) + ", " +
+                               (float_pairs ? "float pairs" : pwcontact::precision_name(precision));
+      const OverlapRun run =
+          float_pairs ? run_overlap(pwcontact::to_float(set.batch), with_isa(isa, 0), 1.0)
+                      : run_overlap(set.batch, with_precision(with_isa(isa, 0), precision), 1.0);
+      const Classification c = classify(run, set.mu2, 1.0);
+      const BatchReport& r = run.report;
+      std::printf(
+          "[ measured ] %s: %zu wrong outside the band (%zu in it); decided by prefilter %zu, "
+          "certificate %zu, reference %zu\n",
+          what.c_str(), c.wrong, c.in_band, r.decided_by_prefilter, r.decided_by_certificate,
+          r.fallbacks);
+      EXPECT_EQ(c.malformed, 0u) << what;
+      EXPECT_EQ(c.wrong, 0u) << what << ", first pair " << c.first_wrong
+                             << ": mu2 - 1 = " << double(set.mu2[c.first_wrong] - 1) << ", overlap "
+                             << int(run.overlap[c.first_wrong]);
+      expect_report_accounts_for_every_pair(run, set.mu2.size(), what);
+      // The extents decide the pairs beyond their margins: about half here.
+      if (isa != Isa::fallback && !on_portable_target())
+        EXPECT_GT(r.decided_by_prefilter, set.mu2.size() / 4) << what;
+    }
+}
+
 class Overlap : public ::testing::TestWithParam<std::tuple<FamilyName, Isa>> {};
 
 TEST_P(Overlap, AgreesWithTheExactClassificationOutsideTheDocumentedBand) {

@@ -1109,6 +1109,53 @@ TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
   }
 }
 
+// A lane given its lambda is answered to the bit as when every lane of its
+// register is given one and passes the cheap checks, whatever its
+// neighbours: lanes given no lambda (the radial guess) or forms the cheap
+// checks from adjugates refuse (a form 1e6 .. 1e150 times larger along two
+// axes) make the register factorise both forms, to check them and to guess,
+// which must not move where a lane given its lambda starts.
+TEST_P(Promise, AWarmStartedLaneIsAnsweredTheSameWhateverItsNeighbours) {
+  const std::vector<Pair<double>> ordinary = make_random_pairs(240, 944);
+  const std::vector<Pair<double>> awkward = huge_along_two_axes_pairs(40, 945);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  auto solve = [&](const std::vector<Pair<double>>& pairs, const std::vector<double>& start) {
+    const PairBatch<double> batch = make_batch(pairs);
+    const std::size_t n = pairs.size();
+    BatchRun<double> run;
+    run.mu2.assign(n, 0);
+    run.lambda.assign(n, 0);
+    run.status.assign(n, Status::ok);
+    pwcontact::PairBatchView<double> view = batch.view();
+    view.lambda_start = start.data();
+    pwcontact::contact_function_batch(
+        view, {run.mu2.data(), run.lambda.data(), run.status.data()},
+        with_precision(with_isa(GetParam()), Precision::double_precision));
+    return run;
+  };
+  // Starts near lambda* (a previous solve's, moved a little).
+  std::vector<double> start;
+  for (const Pair<double>& p : ordinary) start.push_back(reference(p).lambda * (1 + 1e-4));
+  const BatchRun<double> alone = solve(ordinary, start);
+  // Each ordinary pair beside a neighbour given no lambda, or an awkward one.
+  std::vector<Pair<double>> mixed;
+  std::vector<double> mixed_start;
+  std::vector<std::size_t> lanes;
+  for (std::size_t i = 0; i < ordinary.size(); ++i) {
+    lanes.push_back(mixed.size());
+    mixed.push_back(ordinary[i]);
+    mixed_start.push_back(start[i]);
+    mixed.push_back(i % 2 ? ordinary[(i + 7) % ordinary.size()] : awkward[i / 2 % awkward.size()]);
+    mixed_start.push_back(i % 2 ? nan : 0.5);
+  }
+  const std::string label =
+      what("warm-started ordinary pairs", GetParam(), Precision::double_precision);
+  const BatchRun<double> together = solve(mixed, mixed_start);
+  for (std::size_t i = 0; i < ordinary.size(); ++i)
+    ASSERT_TRUE(pwcontact::is_valid(alone.status[i])) << label << ", pair " << i;
+  expect_bitwise_equal(alone, select_lanes(together, lanes), label + ", beside neighbours");
+}
+
 // ---------------------------------------------------------------------------
 // Forms of very different scales
 

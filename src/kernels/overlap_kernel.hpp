@@ -42,10 +42,10 @@ inline constexpr T certificate_margin_per_growth = 256 * std::numeric_limits<T>:
 
 // The cheap first pass decides lanes whose Q both have tr^3 / det (a bound
 // on the condition number) at most this with a margin of 256 eps times it
-// (see OverlapBlock::prefilter): double up to aspect ratios ~100, float up
-// to most of the random family's shapes (semi-axes within a factor 4:
-// tr^3 / det up to 364, for semi-axes 0.5, 0.5 and 2; 0.09 % of its forms
-// are beyond 256).
+// (see OverlapBlock::prefilter): double up to aspect ratios ~30 for
+// needles and ~350 for discs (tr^3 / det ~ a^4 and 8 a^2), float up to most
+// of the random family's shapes (semi-axes within a factor 4: tr^3 / det up
+// to 364, for semi-axes 0.5, 0.5 and 2; 0.09 % of its forms are beyond 256).
 template <class T>
 inline constexpr T prefilter_conditioning = std::is_same<T, double>::value ? T(1e6) : T(256);
 // A lane the trace test or its range refuses takes its own margin instead,
@@ -59,10 +59,12 @@ inline constexpr double prefilter_largest_margin = 0.5;
 // The range of such a lane: n_i, det Qi, H_i and |r|^2 within
 // [floor, 1 / floor], so that their products (n1 n2, n_i det Qj, |r|^4) are
 // normal numbers, and the larger trace below `top`, so that nothing formed
-// on the way (cofactors, magnitudes) overflows; an underflow on the way
-// errs by at most the smallest subnormal, far below eps floor.
+// on the way (cofactors, magnitudes) overflows. A product that underflows
+// on the way errs by less than the smallest normal number (even flushed to
+// zero), times at most |r|^2 <= 1 / floor: 2^-86 (float) against n_i >=
+// 2^-40, far below eps.
 template <class T>
-inline constexpr T prefilter_floor = std::is_same<T, double>::value ? T(0x1p-400) : T(0x1p-60);
+inline constexpr T prefilter_floor = std::is_same<T, double>::value ? T(0x1p-400) : T(0x1p-40);
 template <class T>
 inline constexpr T prefilter_top = std::is_same<T, double>::value ? T(0x1p100) : T(0x1p12);
 // How far ahead the prefilter asks for its inputs, in blocks (measured).
@@ -82,7 +84,7 @@ struct CertifiedBounds {
   B margin;  // relative rounding allowance of the computed bounds
 };
 
-// f and g = -f' at the ends of the bracket [lo, hi]: g_lo < 0 < g_hi.
+// f and g = -f' at the ends of the bracket [lo, hi]: g_lo < 0 <= g_hi.
 template <class B>
 struct BracketEnds {
   B f_lo, g_lo, f_hi, g_hi;
@@ -268,9 +270,10 @@ class OverlapBlock : public LaneGroups<Arch, T> {
   // cond Q <= tr^3 / det; with tr^3 <= K det, the relative errors of
   // r^T Q r, r^T adj(Q) r and det Q are a few tens of eps K (each cofactor
   // errs by ~eps lambda_max^2, while r^T adj(Q) r >= det |r|^2 / lambda_max).
-  // Lanes beyond K, and all the undecided ones, are left (status
-  // needs_fallback) to the accurate solve (start() and the passes after it),
-  // which also makes the exact validity checks.
+  // Lanes beyond K, or out of prefilter_in_range, take margins of their own
+  // (own_margin, eq. 47) and the extents only. All the undecided lanes are
+  // left (status needs_fallback) to the accurate solve (start() and the
+  // passes after it), which also makes the exact validity checks.
   template <class In>
   PWCONTACT_INLINE void prefilter(const PairSpan<In>& in, std::size_t from, std::size_t position,
                                   std::size_t real, const OverlapSpan& out) {
@@ -422,14 +425,13 @@ class OverlapBlock : public LaneGroups<Arch, T> {
                    xsimd::max(Adjugate<B>::det_magnitude(p.q1) / in.det1,
                               Adjugate<B>::det_magnitude(p.q2) / in.det2)),
         xsimd::max(quadratic_form(abs_q1, abs_r) / in.h1, quadratic_form(abs_q2, abs_r) / in.h2));
+    // (Each number tested on its own: min and max of a NaN and a number give
+    // the number on these instruction sets.)
     const B floor(prefilter_floor<T>), ceiling(T(1) / prefilter_floor<T>);
-    const B smallest =
-        xsimd::min(xsimd::min(xsimd::min(in.n1, in.n2), xsimd::min(in.det1, in.det2)),
-                   xsimd::min(xsimd::min(in.h1, in.h2), in.rr));
-    const B largest = xsimd::max(xsimd::max(xsimd::max(in.n1, in.n2), xsimd::max(in.det1, in.det2)),
-                                 xsimd::max(xsimd::max(in.h1, in.h2), in.rr));
-    const M in_range =
-        (smallest >= floor) & (largest <= ceiling) & (in.t_max <= B(prefilter_top<T>));
+    const auto within = [&](const B& x) { return (x >= floor) & (x <= ceiling); };
+    const M in_range = within(in.n1) & within(in.n2) & within(in.det1) & within(in.det2) &
+                       within(in.h1) & within(in.h2) & within(in.rr) &
+                       (in.t_max <= B(prefilter_top<T>));
     return xsimd::select(in_range, B(certificate_margin_per_growth<T>) * rho,
                          B(std::numeric_limits<T>::infinity()));
   }

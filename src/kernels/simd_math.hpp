@@ -189,14 +189,16 @@ struct Adjugate {
   // The magnitudes of what cancels in det: sum |a_i| C_i over the first row,
   // C_i the sum of the magnitudes of cofactor i's two products (absolute
   // values throughout: a negative a5 must not shrink it). Every cofactor
-  // errs by at most ~2 eps' units C_i (gamma_2 C_i), and det by gamma_6 this.
+  // errs by at most gamma_2 C_i (gamma_k = k u / (1 - k u), u = eps / 2),
+  // and det by at most gamma_6 this.
   static B det_magnitude(const B a[6]) {
     return a[0] * (xsimd::abs(a[3] * a[5]) + a[4] * a[4]) +
            xsimd::abs(a[1]) * (xsimd::abs(a[2] * a[4]) + xsimd::abs(a[1] * a[5])) +
            xsimd::abs(a[2]) * (xsimd::abs(a[1] * a[4]) + xsimd::abs(a[2] * a[3]));
   }
   // The same for form(r): sum C_ij |r_i| |r_j| (off-diagonal terms twice);
-  // form(r) errs by at most gamma_9 this.
+  // form(r) errs by at most gamma_9 this (gamma_7 by a count of its
+  // roundings; doc/theory.md eq. 47 keeps the rounder bound).
   static B form_magnitude(const B a[6], const B abs_r[3]) {
     const B m00 = xsimd::abs(a[3] * a[5]) + a[4] * a[4];
     const B m11 = xsimd::abs(a[0] * a[5]) + a[2] * a[2];
