@@ -1110,11 +1110,13 @@ TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
 }
 
 // A lane given its lambda is answered to the bit as when every lane of its
-// register is given one and passes the cheap checks, whatever its
-// neighbours: lanes given no lambda (the radial guess) or forms the cheap
-// checks from adjugates refuse (a form 1e6 .. 1e150 times larger along two
-// axes) make the register factorise both forms, to check them and to guess,
-// which must not move where a lane given its lambda starts.
+// register is given one, whatever its neighbours: lanes given no lambda (the
+// radial guess) or forms far from the others' scale (a form 1e6 .. 1e150
+// times larger along two axes, which makes nondimensionalise scale every
+// lane of the register by its power of two) must not change a bit of the
+// answer of a lane given its lambda. (Also measured, and not kept: checking warm lanes
+// from adjugates and factorising only for such registers, 1M random pairs
+// from lambda* (1 +- 5e-7): 19.7-21.2 ms against 19.0-19.5.)
 TEST_P(Promise, AWarmStartedLaneIsAnsweredTheSameWhateverItsNeighbours) {
   const std::vector<Pair<double>> ordinary = make_random_pairs(240, 944);
   const std::vector<Pair<double>> awkward = huge_along_two_axes_pairs(40, 945);

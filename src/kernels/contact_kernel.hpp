@@ -320,9 +320,6 @@ class FullBlock : public LaneGroups<Arch, T> {
   template <class In>
   PWCONTACT_INLINE void start(const PairSpan<In>& in, std::size_t from, std::size_t position,
                               std::size_t real) {
-    if constexpr (std::is_same<T, double>::value && std::is_same<In, double>::value) {
-      if (warm_start<T>(in)) return start_warm(in, from, position, real);
-    }
     PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       this->load(in, from, position, nullptr, real, u);
       const PairLanes<B>& p = pair_[u];
@@ -341,42 +338,6 @@ class FullBlock : public LaneGroups<Arch, T> {
       const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
       live_[u] = this->usable(u) & factorised_checks(p, f1, f2, s1, s2, coincident);
       coincident_[u] = live_[u] & coincident;
-      lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
-    }
-  }
-
-  // A warm first pass's block in double (the caller's lambda, PairSpan's
-  // lambda_start): the checks from adjugates (start_polynomial's), and the
-  // factorisations only for a register with a lane they refuse (whose
-  // checks they add, as in start_polynomial) or a lane without a lambda in
-  // (0, 1) (whose radial guess they give, as in start). A lane given its
-  // lambda starts from the same lambda as in start, so its answer is the
-  // same to the bit. (The two factorisations cost six divisions a register,
-  // a good part of a warm solve's fixed cost: see README, "The warm start's
-  // fixed cost".)
-  PWCONTACT_INLINE void start_warm(const PairSpan<T>& in, std::size_t from, std::size_t position,
-                                   std::size_t real) {
-    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-      this->load(in, from, position, nullptr, real, u);
-      const PairLanes<B>& p = pair_[u];
-      const Adjugate<B> a1(p.q1), a2(p.q2);
-      const M coincident = (p.r[0] == B(0)) & (p.r[1] == B(0)) & (p.r[2] == B(0));
-      const M usable = this->usable(u);
-      M live = usable & adjugate_checks(p, a1, a2, coincident);
-      const B given = B::load_unaligned(in.lambda_start + from + std::size_t(u) * W);
-      const M warm = (given > B(0)) & (given < B(1));
-      B lambda = given;
-      if (xsimd::any(usable & (!live | !warm))) {
-        const Ldlt<B> f1 = factor(p.q1), f2 = factor(p.q2);
-        const B s1 = inverse_quadratic_form(f1, p.r), s2 = inverse_quadratic_form(f2, p.r);
-        live = live | (usable & factorised_checks(p, f1, f2, s1, s2, coincident));
-        lambda = xsimd::select(warm, given, radial_guess(s1, s2));
-      }
-      lambda_[u] = interior_or_midpoint(lambda);
-      lo_[u] = B(0);
-      hi_[u] = B(1);
-      live_[u] = live;
-      coincident_[u] = live & coincident;
       lambda_coincident_[u] = xsimd::any(coincident_[u]) ? trace_lambda(pair_[u]) : B(0);
     }
   }
