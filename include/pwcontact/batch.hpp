@@ -243,8 +243,9 @@ enum class Formulation {
   automatic,  // the measured best for the precision (see README, "The trade")
   newton,     // Newton on g(lambda) = mu2^2 - mu1^2 (= -f'), in lambda
   log_odds,   // Newton on ln(mu2^2 / mu1^2) in t = ln(lambda / (1 - lambda)):
-              // cubic for spheres (doc/theory.md eq. 22), steadier for
-              // elongated shapes
+              // cubic for spheres (doc/theory.md eq. 22), fewer iterations on
+              // elongated shapes, but not faster in double since cold solves
+              // step on the polynomial form (eq. 46; README)
 };
 
 // BatchOptions::iterations: 0 means automatic, any positive value a fixed count.

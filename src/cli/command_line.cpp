@@ -263,7 +263,8 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
       options.formulation,
       "the Newton iteration of the batch path (advanced): auto, the measured best "
       "for the precision; newton, in lambda; log_odds, in ln(lambda / (1 - lambda)), "
-      "steadier for elongated shapes. The summary names the one used");
+      "fewer iterations on elongated shapes but not faster since cold double solves step "
+      "on the polynomial form (README). The summary names the one used");
   add_threads_option(parser, options.threads, "results");
   parser.add_value({"--isa"}, "auto|sse2|avx2|avx512|fallback",
                    "auto = PWCONTACT_ISA if set, else the best; here " +
