@@ -1040,6 +1040,23 @@ TEST_P(Promise, AFormHugeAlongTwoAxesBesideAnOrdinaryOneIsAnsweredToTheFloor) {
 // ---------------------------------------------------------------------------
 // Warm starts
 
+// A double solve of `batch` started from `start` (PairBatchView::lambda_start),
+// lambda asked for or not.
+BatchRun<double> warm_run(const PairBatch<double>& batch, const std::vector<double>& start, Isa isa,
+                          bool with_lambda) {
+  const std::size_t n = batch.size();
+  BatchRun<double> run;
+  run.mu2.assign(n, 0);
+  run.lambda.assign(n, 0);
+  run.status.assign(n, Status::ok);
+  pwcontact::PairBatchView<double> view = batch.view();
+  view.lambda_start = start.data();
+  pwcontact::contact_function_batch(
+      view, {run.mu2.data(), with_lambda ? run.lambda.data() : nullptr, run.status.data()},
+      with_precision(with_isa(isa), Precision::double_precision));
+  return run;
+}
+
 // A warm start (PairBatchView::lambda_start) takes one Newton step and the
 // convergence check, and makes the cheaper checks of the mixed-precision
 // double block: whatever lambda it is given, the answers keep the promise of
@@ -1085,15 +1102,7 @@ TEST_P(Promise, WarmStartsFromAnyLambdaKeepThePromise) {
         const std::string label = what(family.name, GetParam(), Precision::double_precision) +
                                   ", warm from " + start_names[kind] +
                                   (with_lambda ? ", with lambda" : ", mu2 alone");
-        BatchRun<double> run;
-        run.mu2.assign(n, 0);
-        run.lambda.assign(n, 0);
-        run.status.assign(n, Status::ok);
-        pwcontact::PairBatchView<double> view = batch.view();
-        view.lambda_start = start.data();
-        pwcontact::contact_function_batch(
-            view, {run.mu2.data(), with_lambda ? run.lambda.data() : nullptr, run.status.data()},
-            with_precision(with_isa(GetParam()), Precision::double_precision));
+        const BatchRun<double> run = warm_run(batch, start, GetParam(), with_lambda);
         const Broken b = expect_promise_kept(family.set, run, eps, never, label);
         if (kind == 1) print_broken(label, b);
         if (!with_lambda) continue;
@@ -1122,18 +1131,7 @@ TEST_P(Promise, AWarmStartedLaneIsAnsweredTheSameWhateverItsNeighbours) {
   const std::vector<Pair<double>> awkward = huge_along_two_axes_pairs(40, 945);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   auto solve = [&](const std::vector<Pair<double>>& pairs, const std::vector<double>& start) {
-    const PairBatch<double> batch = make_batch(pairs);
-    const std::size_t n = pairs.size();
-    BatchRun<double> run;
-    run.mu2.assign(n, 0);
-    run.lambda.assign(n, 0);
-    run.status.assign(n, Status::ok);
-    pwcontact::PairBatchView<double> view = batch.view();
-    view.lambda_start = start.data();
-    pwcontact::contact_function_batch(
-        view, {run.mu2.data(), run.lambda.data(), run.status.data()},
-        with_precision(with_isa(GetParam()), Precision::double_precision));
-    return run;
+    return warm_run(make_batch(pairs), start, GetParam(), true);
   };
   // Starts near lambda* (a previous solve's, moved a little).
   std::vector<double> start;
