@@ -242,6 +242,24 @@ TEST(OverlapFallback, IllConditionedPairsNearTangencyAreDecidedOnTheirSide) {
     }
 }
 
+// The three ways the tests below ask for overlap answers: double pairs in
+// double and in mixed precision, and the pairs rounded to float.
+enum class OverlapWay { double_pairs, mixed, float_pairs };
+constexpr OverlapWay overlap_ways[] = {OverlapWay::double_pairs, OverlapWay::mixed,
+                                       OverlapWay::float_pairs};
+const char* way_name(OverlapWay way) {
+  return way == OverlapWay::float_pairs ? "float pairs"
+         : way == OverlapWay::mixed     ? "mixed"
+                                        : "double";
+}
+OverlapRun run_overlap_way(const PairBatch<double>& batch, Isa isa, OverlapWay way) {
+  if (way == OverlapWay::float_pairs)
+    return run_overlap(pwcontact::to_float(batch), with_isa(isa, 0), 1.0);
+  const Precision precision =
+      way == OverlapWay::mixed ? Precision::mixed : Precision::double_precision;
+  return run_overlap(batch, with_precision(with_isa(isa, 0), precision), 1.0);
+}
+
 // Pairs symmetric about the plane halfway between their centres: r12 along
 // x and Q2 the mirror image of Q1 (the signs of its xy and xz entries
 // flipped, exact in floating point), as in the pw85 family. Their lambda* is
@@ -283,15 +301,10 @@ TEST(OverlapSymmetric, PairsSymmetricAboutTheMidplaneAreDecidedByTheKernels) {
   Classified f = mirror_symmetric_pairs();
   f.batch = make_batch(f.pairs);
   for (Isa isa : isas())
-    for (int kind = 0; kind < 3; ++kind) {
-      const Precision precision = kind == 1 ? Precision::mixed : Precision::double_precision;
-      const bool float_pairs = kind == 2;  // (rounding keeps the mirror exact)
+    for (OverlapWay way : overlap_ways) {  // (rounding to float keeps the mirror exact)
       const std::string what = std::string("pairs symmetric about the midplane, ") +
-                               pwcontact::isa_name(isa) + ", " +
-                               (float_pairs ? "float pairs" : pwcontact::precision_name(precision));
-      const OverlapRun run =
-          float_pairs ? run_overlap(pwcontact::to_float(f.batch), with_isa(isa, 0), 1.0)
-                      : run_overlap(f.batch, with_precision(with_isa(isa, 0), precision), 1.0);
+                               pwcontact::isa_name(isa) + ", " + way_name(way);
+      const OverlapRun run = run_overlap_way(f.batch, isa, way);
       const Classification c = classify(run, f.mu2, 1.0);
       std::printf("[ measured ] %s: %zu wrong, %zu by the reference, %.2f evaluations per pair\n",
                   what.c_str(), c.wrong, run.report.fallbacks, run.report.mean_evaluations);
@@ -299,8 +312,9 @@ TEST(OverlapSymmetric, PairsSymmetricAboutTheMidplaneAreDecidedByTheKernels) {
       EXPECT_EQ(c.wrong, 0u) << what << ", first pair " << c.first_wrong;
       // mu^2 is at least 20 % from the cutoff, beyond any margin (256 eps times
       // growths up to ~1e6 in double): nothing is left to the reference path.
-      if (isa != Isa::fallback && !on_portable_target())
+      if (isa != Isa::fallback && !on_portable_target()) {
         EXPECT_EQ(run.report.fallbacks, 0u) << what << ": pairs left to the reference path";
+      }
     }
   for (std::size_t i = 0; i < f.pairs.size(); ++i) {
     const Pair<double>& p = f.pairs[i];
@@ -372,16 +386,11 @@ CoaxialFamily coaxial_elongated_pairs() {
 TEST(OverlapOwnMargin, CoaxialElongatedPairsAreDecidedOnTheirSide) {
   const CoaxialFamily f = coaxial_elongated_pairs();
   for (Isa isa : isas())
-    for (int kind = 0; kind < 3; ++kind) {
-      const bool float_pairs = kind == 2;
-      const Precision precision = kind == 1 ? Precision::mixed : Precision::double_precision;
-      const Classified& set = float_pairs ? f.as_float : f.pairs;
+    for (OverlapWay way : overlap_ways) {
+      const Classified& set = way == OverlapWay::float_pairs ? f.as_float : f.pairs;
       const std::string what = std::string("coaxial needles and discs, ") +
-                               pwcontact::isa_name(isa) + ", " +
-                               (float_pairs ? "float pairs" : pwcontact::precision_name(precision));
-      const OverlapRun run =
-          float_pairs ? run_overlap(pwcontact::to_float(set.batch), with_isa(isa, 0), 1.0)
-                      : run_overlap(set.batch, with_precision(with_isa(isa, 0), precision), 1.0);
+                               pwcontact::isa_name(isa) + ", " + way_name(way);
+      const OverlapRun run = run_overlap_way(set.batch, isa, way);
       const Classification c = classify(run, set.mu2, 1.0);
       const BatchReport& r = run.report;
       std::printf(
@@ -395,8 +404,9 @@ TEST(OverlapOwnMargin, CoaxialElongatedPairsAreDecidedOnTheirSide) {
                              << int(run.overlap[c.first_wrong]);
       expect_report_accounts_for_every_pair(run, set.mu2.size(), what);
       // The extents decide the pairs beyond their margins: about half here.
-      if (isa != Isa::fallback && !on_portable_target())
+      if (isa != Isa::fallback && !on_portable_target()) {
         EXPECT_GT(r.decided_by_prefilter, set.mu2.size() / 4) << what;
+      }
     }
 }
 
