@@ -42,8 +42,9 @@ constexpr bool single_input = std::is_same<T, float>::value;
 // The options with nothing left automatic, checked against the input type.
 template <class T>
 BatchReport resolve(const BatchOptions& options, std::size_t pairs) {
-  if (options.iterations < 0)
-    throw std::invalid_argument("BatchOptions::iterations must be >= 0 (0 = automatic), got " +
+  if (options.iterations < 0 || options.iterations > max_fixed_iterations)
+    throw std::invalid_argument("BatchOptions::iterations must be 0 (automatic) or a count 1 .. " +
+                                std::to_string(max_fixed_iterations) + ", got " +
                                 std::to_string(options.iterations));
   detail::thread_count(options.threads, "BatchOptions::threads");
   // Values cast from outside their enumerations: refused, not taken for a

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "fixtures/families.hpp"
 #include "pwcontact/pwcontact.hpp"
 #include "test_support.hpp"
 
@@ -286,6 +287,67 @@ TEST(ThreadCounts, BeyondZeroTo1024AreRefusedByEveryCallNamingIt) {
     mc_options.threads = threads;
     refused([&] { pwcontact::HardParticleMC::dilute_spheroids(8, 1, 2, mc_options); },
             "HardParticleMC");
+  }
+}
+
+// Iteration counts: 0 (automatic) or a fixed count 1 .. max_fixed_iterations,
+// as the command line and Python take them, in both batch calls and for
+// both input types; beyond, std::invalid_argument naming the range (a count
+// of 2^31 - 1 was taken, and every lane of the call then ran that many).
+TEST(IterationCounts, BeyondTheFixedRangeAreRefusedAndItsEndsTaken) {
+  pwcontact::PairBatch<double> batch;
+  const double r[3] = {1.5, 0, 0};
+  const auto q = pwcontact::sphere(1);
+  batch.push_back(r, q.data(), q.data());
+  const pwcontact::PairBatch<float> single = pwcontact::to_float(batch);
+  std::vector<double> mu2(1);
+  std::vector<float> mu2_single(1);
+  std::vector<std::uint8_t> overlap(1);
+  std::vector<Status> status(1);
+  auto calls = [&](int iterations) {
+    BatchOptions options;
+    options.iterations = iterations;
+    return std::vector<std::function<void()>>{
+        [&, options] {
+          pwcontact::contact_function_batch(batch.view(), {mu2.data(), nullptr, status.data()},
+                                            options);
+        },
+        [&, options] {
+          pwcontact::contact_function_batch(single.view(),
+                                            {mu2_single.data(), nullptr, status.data()}, options);
+        },
+        [&, options] {
+          pwcontact::overlap_batch(batch.view(), {overlap.data(), status.data()}, options);
+        },
+        [&, options] {
+          pwcontact::overlap_batch(single.view(), {overlap.data(), status.data()}, options);
+        }};
+  };
+  for (int iterations : {-1, pwcontact::max_fixed_iterations + 1, 2147483647})
+    for (const auto& call : calls(iterations)) {
+      try {
+        call();
+        ADD_FAILURE() << iterations << ": accepted";
+      } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("BatchOptions::iterations must be 0 (automatic) or a "
+                                             "count 1 .. 1000, got " +
+                                             std::to_string(iterations)),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  // Both ends answer: two spheres 1.5 apart, mu^2 = 1.5^2 / 2^2.
+  for (int iterations : {0, 1, pwcontact::max_fixed_iterations}) {
+    mu2[0] = mu2_single[0] = 0;
+    overlap[0] = 0;
+    for (const auto& call : calls(iterations)) {
+      status[0] = Status::not_converged;
+      EXPECT_NO_THROW(call()) << iterations;
+      EXPECT_TRUE(pwcontact::is_valid(status[0])) << iterations;
+    }
+    EXPECT_NEAR(mu2[0], 0.5625, 1e-15) << iterations;
+    EXPECT_NEAR(mu2_single[0], 0.5625f, 1e-6f) << iterations;
+    EXPECT_EQ(overlap[0], 1) << iterations;
   }
 }
 

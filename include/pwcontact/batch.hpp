@@ -248,8 +248,11 @@ enum class Formulation {
               // step on the polynomial form (eq. 46; README)
 };
 
-// BatchOptions::iterations: 0 means automatic, any positive value a fixed count.
+// BatchOptions::iterations: 0 means automatic, 1 .. max_fixed_iterations a
+// fixed count (beyond it a call would take minutes per pair batch to no end:
+// Newton has long stalled, and the reference path answers what it leaves).
 inline constexpr int automatic_iterations = 0;
+inline constexpr int max_fixed_iterations = 1000;
 
 struct BatchOptions {
   // Automatic: every lane iterates until its convergence check passes, the

@@ -229,8 +229,8 @@ def _iterations(iterations) -> Union[str, int]:
     if isinstance(iterations, (bool, np.bool_)) or not isinstance(iterations, numbers.Integral):
         raise ValueError(f"iterations must be 'auto' or an integer, got {iterations!r}")
     i = int(iterations)
-    if not -2**31 <= i < 2**31:  # (the core names the range 1 .. 40; beyond an int, say it here)
-        raise ValueError(f"iterations must be 'auto' or an integer 1 .. 40, got {i}")
+    if not -2**31 <= i < 2**31:  # (the core names the range; beyond an int, say it here)
+        raise ValueError(f"iterations must be 'auto' or an integer 0 .. 1000 (0: auto), got {i}")
     return i
 
 
@@ -246,10 +246,11 @@ def contact_function(r12, q1, q2, *, outputs: Iterable[str] = ("mu2", "lambda"),
     others cost only when asked).
     precision: "auto" (float32 pairs in float, else double), "double",
     "float", "mixed". iterations: "auto" (each pair until its convergence
-    check passes) or a fixed count, an integer 1 .. 40. accuracy: "standard"
-    or "high" (the answer refined in double: float32 pairs with
-    accuracy="high" need precision="double" or "mixed", ValueError with
-    "auto" or "float").
+    check passes; also 0 or None) or a fixed count, an integer 1 .. 1000 (the
+    command line's --iterations and BatchOptions.iterations take the same).
+    accuracy: "standard" or "high" (the answer refined in double: float32
+    pairs with accuracy="high" need precision="double" or "mixed",
+    ValueError with "auto" or "float").
     threads: OpenMP threads, 0 .. 1024 (0: all). isa: "auto", "sse2", "avx2", "avx512", "fallback" (the reference path per pair, on any CPU).
     lambda_start: optional (N,) array, a lambda to start each pair from (a
     warm start, e.g. the previous step's; NaN for none).

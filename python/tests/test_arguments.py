@@ -188,6 +188,24 @@ def test_iterations_as_numpy_integers_are_taken():
     assert pw.is_valid(r.status).all()
 
 
+def test_iterations_take_the_command_lines_range():
+    # 0 is automatic and 1 .. 1000 fixed, as --iterations and BatchOptions
+    # take them (41 .. 1000 were refused here alone); beyond, ValueError.
+    q = pw.sphere(1)
+    auto = pw.contact_function([1.5, 0, 0], q, q)
+    for iterations in (0, None, 41, 1000):
+        r = pw.contact_function([1.5, 0, 0], q, q, iterations=iterations)
+        assert pw.is_valid(r.status).all()
+        np.testing.assert_allclose(r.mu2, 0.5625, rtol=1e-15)
+        assert pw.overlap([1.5, 0, 0], q, q, iterations=iterations).overlap.all()
+    assert pw.contact_function([1.5, 0, 0], q, q, iterations=0).report == auto.report
+    for iterations in (-1, 1001, 2**31 - 1):
+        for call in (pw.contact_function, pw.overlap):
+            with pytest.raises(ValueError, match=rf"iterations must be 'auto' or an integer "
+                                                 rf"0 \.\. 1000 \(0: auto\), got {iterations}"):
+                call([1.5, 0, 0], q, q, iterations=iterations)
+
+
 def test_counts_and_seeds_must_be_non_negative_integers():
     with pytest.raises(ValueError, match="seed"):
         pw.HardParticleMC(np.zeros((1, 3)), None, [0.5, 0.5, 0.5], box=pw.Box.cube(5), seed=-1)
@@ -332,7 +350,7 @@ def test_dilute_spheroids_takes_the_command_lines_sixteen_shapes():
 
 def test_arguments_beyond_their_types_are_value_errors_naming_them(tmp_path):
     q = pw.sphere(1.0)
-    with pytest.raises(ValueError, match="iterations must be 'auto' or an integer 1 .. 40"):
+    with pytest.raises(ValueError, match=r"iterations must be 'auto' or an integer 0 \.\. 1000 \(0: auto\)"):
         pw.contact_function([0, 0, 3.0], q, q, iterations=2**64)
     with pytest.raises(ValueError, match="lambda_start must be an array of numbers"):
         pw.contact_function([0, 0, 3.0], q, q, lambda_start=object())

@@ -84,7 +84,7 @@ def test_shape_and_option_errors_are_value_errors():
     with pytest.raises(ValueError, match="precision"):
         pw.contact_function(np.ones((4, 3)), q, q, precision="quad")
     with pytest.raises(ValueError, match="iterations"):
-        pw.contact_function(np.ones((4, 3)), q, q, iterations=0)
+        pw.contact_function(np.ones((4, 3)), q, q, iterations=-1)
     with pytest.raises(ValueError, match="threads"):
         pw.contact_function(np.ones((4, 3)), q, q, threads=-1)
     with pytest.raises(ValueError, match="cutoff"):

@@ -27,12 +27,14 @@ std::string supported_isa_list() {
   return list;
 }
 
-// "auto", or a count from 0 (automatic as well, the library's convention) to 1000.
+// "auto", or a count from 0 (automatic as well, the library's convention) to
+// max_fixed_iterations.
 int parse_iterations(std::string_view text) {
   if (text == "auto") return automatic_iterations;
   if (text.empty() || text.find_first_not_of("0123456789") != std::string_view::npos)
-    throw std::invalid_argument(quoted(text) + " is neither auto nor a count from 1 to 1000");
-  return int(parse_integer(text, 0, 1000));
+    throw std::invalid_argument(quoted(text) + " is neither auto nor a count from 1 to " +
+                                std::to_string(max_fixed_iterations));
+  return int(parse_integer(text, 0, max_fixed_iterations));
 }
 
 }  // namespace
@@ -243,8 +245,9 @@ void add_solver_options(OptionParser& parser, SolverOptions& options) {
       {"--iterations"}, "N|auto", "auto",
       "Newton iterations of the batch path. auto (also 0): each pair iterates "
       "until its convergence check passes, up to " +
-          std::to_string(max_automatic_iterations) +
-          " evaluations. N from 1 to 1000: every pair gets N (mixed precision "
+          std::to_string(max_automatic_iterations) + " evaluations. N from 1 to " +
+          std::to_string(max_fixed_iterations) +
+          ": every pair gets N (mixed precision "
           "adds a double finish; overlap mode stops a pair once it is decided). "
           "Pairs that still fail the check are recomputed by the reference path "
           "(status 1, ok_fallback)",

@@ -171,10 +171,11 @@ pwcontact::BatchOptions batch_options(const std::string& precision, const py::ob
       (py::isinstance<py::str>(iterations) && iterations.cast<std::string>() == "auto")) {
     o.iterations = pwcontact::automatic_iterations;
   } else {
+    // (0 is automatic, as in BatchOptions and on the command line.)
     const long n = iterations.cast<long>();
-    if (n < 1 || n > pwcontact::max_automatic_iterations)
-      throw py::value_error("iterations must be 'auto' or 1 .. " +
-                            std::to_string(pwcontact::max_automatic_iterations) + ", got " +
+    if (n < 0 || n > pwcontact::max_fixed_iterations)
+      throw py::value_error("iterations must be 'auto' or an integer 0 .. " +
+                            std::to_string(pwcontact::max_fixed_iterations) + " (0: auto), got " +
                             std::to_string(n));
     o.iterations = int(n);
   }
