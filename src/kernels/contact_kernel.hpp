@@ -380,13 +380,18 @@ class FullBlock : public LaneGroups<Arch, T> {
           polynomials[u].step(lambda_[u], lo_[u], hi_[u]);
     }
     this->count_evaluations(steps);
-    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
-      // Lane by lane (a lane's answer must not depend on its neighbours in
-      // the register: the same bits whatever the batch's partition).
-      for (int it = 0; it < polynomial_extra_steps; ++it) {
+    // Lane by lane (a lane's answer must not depend on its neighbours in
+    // the register: the same bits whatever the batch's partition); the
+    // groups with a lane still going step side by side, so that their
+    // chains of dependent arithmetic (a division in each) overlap (one group
+    // after another, each step waited for the last).
+    for (int it = 0; it < polynomial_extra_steps; ++it) {
+      bool stepped = false;
+      PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
         const B width = xsimd::min(lambda_[u], B(1) - lambda_[u]);
         const M going = (moved[u] > B(polynomial_settled) * width) & live_[u];
-        if (!xsimd::any(going)) break;
+        if (!xsimd::any(going)) continue;
+        stepped = true;
         B lambda = lambda_[u], lo = lo_[u], hi = hi_[u];
         const B step = polynomials[u].step(lambda, lo, hi);
         lambda_[u] = xsimd::select(going, lambda, lambda_[u]);
@@ -395,6 +400,9 @@ class FullBlock : public LaneGroups<Arch, T> {
         moved[u] = xsimd::select(going, step, B(0));
         this->counters_.lane_evaluations += count_lanes<Arch, T>(going);
       }
+      if (!stepped) break;
+    }
+    PWCONTACT_UNROLL for (int u = 0; u < U; ++u) {
       // (NaN from a lane whose coefficients overflowed: the midpoint.)
       lambda_[u] = interior_or_midpoint(lambda_[u]);
       lo_[u] = B(0);

@@ -239,6 +239,11 @@ template <class B>
 struct ContactPolynomials {
   B d[4];
   B n[3];
+  // The coefficients of D', D'', P' and P'' in the same basis (see step),
+  // formed once per pair rather than at every step.
+  B e[3], d2[2];  // D' = e0 y^2 + e1 x y + e2 x^2, D'' = d2_0 y + d2_1 x
+  B p1, p2;       // P' = n0 y^3 + p1 x y^2 + p2 x^2 y - n2 x^3
+  B q2[3];        // P'' = q2_0 y^2 + q2_1 x y + q2_2 x^2
 
   ContactPolynomials() = default;
   ContactPolynomials(const B r[3], const B a[6], const B b[6], const Adjugate<B>& adj_a,
@@ -267,6 +272,18 @@ struct ContactPolynomials {
     const B n_scale = reciprocal_power_of_two(n[0] + n[2]);
     for (B& c : d) c *= d_scale;
     for (B& c : n) c *= n_scale;
+    // The derivatives' coefficients follow from dx/dlambda = 1 and
+    // dy/dlambda = -1.
+    e[0] = d[1] - B(3) * d[0];
+    e[1] = B(2) * (d[2] - d[1]);
+    e[2] = B(3) * d[3] - d[2];
+    d2[0] = e[1] - B(2) * e[0];
+    d2[1] = B(2) * e[2] - e[1];
+    p1 = B(2) * n[1] - B(3) * n[0];
+    p2 = B(3) * n[2] - B(2) * n[1];
+    q2[0] = p1 - B(3) * n[0];
+    q2[1] = B(2) * (p2 - p1);
+    q2[2] = -(B(3) * n[2] + p2);
   }
 
   // The radial guess (eq. 30) from s1 / s2 = n0 d3 / (n2 d0) (eq. 16:
@@ -277,24 +294,18 @@ struct ContactPolynomials {
 
   // One safeguarded Newton step on f' (the step of eq. 20: g = -f'), from
   // f' = h / D^2 and f'' = (k D - 2 D' h) / D^3 with P = x y N, h = P' D -
-  // P D' and k = P'' D - P D''. The derivatives' coefficients follow from
-  // dx/dlambda = 1, dy/dlambda = -1 (recomputed here rather than kept: fewer
-  // registers). Narrows [lo, hi] by the sign of h; returns how far lambda
-  // moved.
+  // P D' and k = P'' D - P D'', the derivatives' coefficients formed once
+  // (the constructor). Narrows [lo, hi] by the sign of h; returns how far
+  // lambda moved.
   PWCONTACT_INLINE B step(B& lambda, B& lo, B& hi) const {
-    // D' = e0 y^2 + e1 x y + e2 x^2, D'' = (e1 - 2 e0) y + (2 e2 - e1) x.
-    const B e0 = d[1] - B(3) * d[0], e1 = B(2) * (d[2] - d[1]), e2 = B(3) * d[3] - d[2];
-    // P' = p0 y^3 + p1 x y^2 + p2 x^2 y + p3 x^3 (p0 = n0, p3 = -n2),
-    // P'' = (p1 - 3 p0) y^2 + 2 (p2 - p1) x y + (3 p3 - p2) x^2.
-    const B p1 = B(2) * n[1] - B(3) * n[0], p2 = B(3) * n[2] - B(2) * n[1];
     const B x = lambda, y = B(1) - lambda;
     const B xx = x * x, xy = x * y, yy = y * y;
     const B D = yy * (d[0] * y + d[1] * x) + xx * (d[2] * y + d[3] * x);
-    const B D1 = e0 * yy + e1 * xy + e2 * xx;
-    const B D2 = (e1 - B(2) * e0) * y + (B(2) * e2 - e1) * x;
+    const B D1 = e[0] * yy + e[1] * xy + e[2] * xx;
+    const B D2 = d2[0] * y + d2[1] * x;
     const B P = xy * (n[0] * yy + n[1] * xy + n[2] * xx);
     const B P1 = yy * (n[0] * y + p1 * x) + xx * (p2 * y - n[2] * x);
-    const B P2 = (p1 - B(3) * n[0]) * yy + B(2) * (p2 - p1) * xy - (B(3) * n[2] + p2) * xx;
+    const B P2 = q2[0] * yy + q2[1] * xy + q2[2] * xx;
     const B h = P1 * D - P * D1;
     const B k = P2 * D - P * D2;
     lo = xsimd::select(h > B(0), lambda, lo);
