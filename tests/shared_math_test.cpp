@@ -462,5 +462,71 @@ TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
   }
 }
 
+// The start of the cold steps where a form is elongated (contact_kernel.hpp,
+// polynomial_elongated and polynomial_starts), on the pw85 pairs of the
+// quad-precision table: the start ContactPolynomials::largest_of picks has
+// the largest f of the radial guess and the fixed starts by f evaluated in
+// long double from the pair (up to the polynomial form's own rounding:
+// starts whose f differ by less than 1e-9 f are not told apart), and from it
+// the kernel's steps (three, then up to polynomial_extra_steps while a lane
+// still moves by more than polynomial_settled of its width) leave fewer
+// pairs more than 2^-20 of their width from lambda* (each of those a later
+// factorised pass) than from the radial guess.
+TEST(SharedMath, ElongatedPairsStartWhereFIsLargest) {
+  const pwtest::ReferenceTable table = pwtest::load_reference_pairs();
+  ASSERT_TRUE(table.error.empty()) << table.error;
+  int elongated = 0, off_from_radial = 0, off_from_start = 0;
+  for (const pwtest::ReferenceRecord& record : table.records) {
+    if (record.family != "pw85") continue;
+    const Pair<double>& pair = record.pair;
+    kernel::PairLanes<B> p;
+    broadcast(pair.r12.data(), 3, p.r);
+    broadcast(pair.q1.data(), 6, p.q1);
+    broadcast(pair.q2.data(), 6, p.q2);
+    const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
+    auto beyond = [](const Form& q, const B& det) {
+      const double t = q[0] + q[3] + q[5];
+      return t * t * t > kernel::polynomial_elongated * det.get(0);
+    };
+    if (!beyond(pair.q1, a1.det) && !beyond(pair.q2, a2.det)) continue;
+    ++elongated;
+    const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
+    const B radial = polynomials.radial_guess();
+    const B start = polynomials.largest_of(radial, kernel::polynomial_starts);
+    auto f = [&](long double lambda) {
+      std::array<long double, 6> q;
+      std::array<long double, 3> r;
+      for (int k = 0; k < 6; ++k) q[k] = (1 - lambda) * pair.q1[k] + lambda * pair.q2[k];
+      for (int k = 0; k < 3; ++k) r[k] = pair.r12[k];
+      return lambda * (1 - lambda) *
+             detail::inverse_quadratic_form(detail::Ldlt3<long double>(q.data()), r.data());
+    };
+    const long double f_start = f(start.get(0));
+    EXPECT_GE(f_start, f(radial.get(0)) * (1 - 1e-9L)) << "pw85 pair " << elongated;
+    for (double fixed : kernel::polynomial_starts)
+      EXPECT_GE(f_start, f(fixed) * (1 - 1e-9L)) << "pw85 pair " << elongated << ", " << fixed;
+    const double expected = double(record.lambda);
+    const double width = std::min(expected, 1 - expected);
+    auto off_after_steps = [&](B lambda) {
+      B lo(0), hi(1), moved(0);
+      for (int step = 0; step < 3; ++step) moved = polynomials.step(lambda, lo, hi);
+      for (int step = 0; step < kernel::polynomial_extra_steps; ++step) {
+        const double l = lambda.get(0);
+        if (!(moved.get(0) > kernel::polynomial_settled * std::min(l, 1 - l))) break;
+        moved = polynomials.step(lambda, lo, hi);
+      }
+      return !(std::abs(lambda.get(0) - expected) <= 0x1p-20 * width);
+    };
+    off_from_radial += off_after_steps(radial);
+    off_from_start += off_after_steps(start);
+  }
+  std::printf(
+      "[ measured ] elongated pw85 pairs: %d; more than 2^-20 of their width from lambda* after "
+      "the steps: %d from the radial guess, %d from the start\n",
+      elongated, off_from_radial, off_from_start);
+  EXPECT_GE(elongated, 500);
+  EXPECT_LE(2 * off_from_start, off_from_radial);
+}
+
 }  // namespace
 }  // namespace pwtest

@@ -292,6 +292,31 @@ struct ContactPolynomials {
     return B(1) / (B(1) + xsimd::sqrt((n[0] * d[3]) / (n[2] * d[0])));
   }
 
+  // Whichever of `lambda` and the fixed `starts` (inside (0, 1)) has the
+  // largest f = x y N / D, compared without a division (D > 0):
+  // f(a) > f(b) iff P(a) D(b) > P(b) D(a). For a fixed start the weights of
+  // the coefficients are constants. A lane whose coefficients are not
+  // finite keeps `lambda` (every comparison false).
+  template <std::size_t K>
+  PWCONTACT_INLINE B largest_of(const B& lambda, const double (&starts)[K]) const {
+    auto values = [&](const B& x, const B& y, B& P, B& D) {
+      const B xx = x * x, xy = x * y, yy = y * y;
+      D = yy * (d[0] * y + d[1] * x) + xx * (d[2] * y + d[3] * x);
+      P = xy * (n[0] * yy + n[1] * xy + n[2] * xx);
+    };
+    B best = lambda, best_P, best_D;
+    values(lambda, B(1) - lambda, best_P, best_D);
+    for (double start : starts) {
+      B P, D;
+      values(B(start), B(1 - start), P, D);
+      const auto larger = P * best_D > best_P * D;
+      best = xsimd::select(larger, B(start), best);
+      best_P = xsimd::select(larger, P, best_P);
+      best_D = xsimd::select(larger, D, best_D);
+    }
+    return best;
+  }
+
   // One safeguarded Newton step on f' (the step of eq. 20: g = -f'), from
   // f' = h / D^2 and f'' = (k D - 2 D' h) / D^3 with P = x y N, h = P' D -
   // P D' and k = P'' D - P D'', the derivatives' coefficients formed once
