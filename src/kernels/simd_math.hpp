@@ -300,9 +300,8 @@ struct ContactPolynomials {
   template <std::size_t K>
   PWCONTACT_INLINE B largest_of(const B& lambda, const double (&starts)[K]) const {
     auto values = [&](const B& x, const B& y, B& P, B& D) {
-      const B xx = x * x, xy = x * y, yy = y * y;
-      D = yy * (d[0] * y + d[1] * x) + xx * (d[2] * y + d[3] * x);
-      P = xy * (n[0] * yy + n[1] * xy + n[2] * xx);
+      D = denominator(x, y, x * x, y * y);
+      P = numerator(x * y, x * x, y * y);
     };
     B best = lambda, best_P, best_D;
     values(lambda, B(1) - lambda, best_P, best_D);
@@ -325,10 +324,10 @@ struct ContactPolynomials {
   PWCONTACT_INLINE B step(B& lambda, B& lo, B& hi) const {
     const B x = lambda, y = B(1) - lambda;
     const B xx = x * x, xy = x * y, yy = y * y;
-    const B D = yy * (d[0] * y + d[1] * x) + xx * (d[2] * y + d[3] * x);
+    const B D = denominator(x, y, xx, yy);
     const B D1 = e[0] * yy + e[1] * xy + e[2] * xx;
     const B D2 = d2[0] * y + d2[1] * x;
-    const B P = xy * (n[0] * yy + n[1] * xy + n[2] * xx);
+    const B P = numerator(xy, xx, yy);
     const B P1 = yy * (n[0] * y + p1 * x) + xx * (p2 * y - n[2] * x);
     const B P2 = q2[0] * yy + q2[1] * xy + q2[2] * xx;
     const B h = P1 * D - P * D1;
@@ -343,6 +342,14 @@ struct ContactPolynomials {
   }
 
  private:
+  // D and P = x y N of eq. 46 at x = lambda, y = 1 - lambda (xx = x^2 ...).
+  PWCONTACT_INLINE B denominator(const B& x, const B& y, const B& xx, const B& yy) const {
+    return yy * (d[0] * y + d[1] * x) + xx * (d[2] * y + d[3] * x);
+  }
+  PWCONTACT_INLINE B numerator(const B& xy, const B& xx, const B& yy) const {
+    return xy * (n[0] * yy + n[1] * xy + n[2] * xx);
+  }
+
   // 2^-e for x = m 2^e (m in [1, 2)) normal and positive, from the exponent
   // bits; 1 elsewhere (0, subnormal, infinite or NaN sums: such a lane's
   // steps are noise or NaN, and its factorised check decides).
