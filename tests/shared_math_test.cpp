@@ -115,6 +115,18 @@ void broadcast(const double* x, int n, B* out) {
   for (int k = 0; k < n; ++k) out[k] = B(x[k]);
 }
 
+// One pair in every lane.
+kernel::PairLanes<B> lanes_of(const double r[3], const double q1[6], const double q2[6]) {
+  kernel::PairLanes<B> lanes;
+  broadcast(r, 3, lanes.r);
+  broadcast(q1, 6, lanes.q1);
+  broadcast(q2, 6, lanes.q2);
+  return lanes;
+}
+kernel::PairLanes<B> lanes_of(const Pair<double>& p) {
+  return lanes_of(p.r12.data(), p.q1.data(), p.q2.data());
+}
+
 TEST(SharedMath, FactorisationAgreesBitForBitWherePivotsArePowersOfTwo) {
   std::mt19937_64 engine(38);
   for (int i = 0; i < 20000; ++i) {
@@ -195,10 +207,7 @@ TEST(SharedMath, EvaluationAgreesBitForBitWherePivotsArePowersOfTwo) {
     if (!(q1_factor.d0 > 0 && q1_factor.d1 > 0 && q1_factor.d2 > 0)) continue;  // Q1 not SPD
     const double r[3] = {uniform(engine, -3, 3), uniform(engine, -3, 3), uniform(engine, -3, 3)};
 
-    kernel::PairLanes<B> pair;
-    broadcast(r, 3, pair.r);
-    broadcast(q1.data(), 6, pair.q1);
-    broadcast(q2.data(), 6, pair.q2);
+    const kernel::PairLanes<B> pair = lanes_of(r, q1.data(), q2.data());
     const kernel::Evaluation<B> e = kernel::evaluate(pair, broadcast(lambda));
     const detail::Residual<double> reference = detail::evaluate(r, q1.data(), q2.data(), lambda);
     const std::string what = "evaluation " + std::to_string(evaluations);
@@ -238,10 +247,7 @@ const std::vector<double> subnormal_scale = {1e-160};
 void expect_scalings_agree(const std::vector<Pair<double>>& pairs) {
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const Pair<double>& p = pairs[i];
-    kernel::PairLanes<B> lanes;
-    broadcast(p.r12.data(), 3, lanes.r);
-    broadcast(p.q1.data(), 6, lanes.q1);
-    broadcast(p.q2.data(), 6, lanes.q2);
+    kernel::PairLanes<B> lanes = lanes_of(p);
     const double t = kernel::nondimensionalise(lanes, true).get(0);
     const detail::ScaledPair<double> reference(p.r12.data(), p.q1.data(), p.q2.data());
     const std::string what = "pair " + std::to_string(i);
@@ -272,10 +278,7 @@ TEST(SharedMath, TheCertificatesFactorEvaluateAndScaleAsTheKernelsDoBitForBit) {
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const Pair<double>& p = pairs[i];
     const std::string what = "pair " + std::to_string(i);
-    kernel::PairLanes<B> lanes;
-    broadcast(p.r12.data(), 3, lanes.r);
-    broadcast(p.q1.data(), 6, lanes.q1);
-    broadcast(p.q2.data(), 6, lanes.q2);
+    kernel::PairLanes<B> lanes = lanes_of(p);
     const double t = kernel::nondimensionalise(lanes, true).get(0);
     const double largest = std::max({p.q1[0], p.q1[3], p.q1[5], p.q2[0], p.q2[3], p.q2[5]});
     expect_same_bits(t, certificate::scale_to_unit(largest), what + ", t");
@@ -424,10 +427,7 @@ TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
     const bool random = record.family == "random";
     if (!random && record.family != "pw85") continue;
     const Pair<double>& pair = record.pair;
-    kernel::PairLanes<B> p;
-    broadcast(pair.r12.data(), 3, p.r);
-    broadcast(pair.q1.data(), 6, p.q1);
-    broadcast(pair.q2.data(), 6, p.q2);
+    const kernel::PairLanes<B> p = lanes_of(pair);
     const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
     const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
     const double expected = double(record.lambda);
@@ -450,12 +450,9 @@ TEST(SharedMath, PolynomialStepsConvergeToTheOraclesLambda) {
   EXPECT_EQ(checked, 2000);
   // Spheres of radii a and b: lambda* = a / (a + b) from the guess alone.
   for (const auto& [a, b] : {std::pair{1.0, 2.0}, std::pair{0.3, 7.0}, std::pair{5.0, 5.0}}) {
-    kernel::PairLanes<B> p;
     const double r[3] = {0.3, -1.1, 2.0};
     const Form q1{a * a, 0, 0, a * a, 0, a * a}, q2{b * b, 0, 0, b * b, 0, b * b};
-    broadcast(r, 3, p.r);
-    broadcast(q1.data(), 6, p.q1);
-    broadcast(q2.data(), 6, p.q2);
+    const kernel::PairLanes<B> p = lanes_of(r, q1.data(), q2.data());
     const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
     const kernel::ContactPolynomials<B> polynomials(p.r, p.q1, p.q2, a1, a2);
     EXPECT_NEAR(polynomials.radial_guess().get(0), a / (a + b), 4e-16) << a << ", " << b;
@@ -479,10 +476,7 @@ TEST(SharedMath, ElongatedPairsStartWhereFIsLargest) {
   for (const pwtest::ReferenceRecord& record : table.records) {
     if (record.family != "pw85") continue;
     const Pair<double>& pair = record.pair;
-    kernel::PairLanes<B> p;
-    broadcast(pair.r12.data(), 3, p.r);
-    broadcast(pair.q1.data(), 6, p.q1);
-    broadcast(pair.q2.data(), 6, p.q2);
+    const kernel::PairLanes<B> p = lanes_of(pair);
     const kernel::Adjugate<B> a1(p.q1), a2(p.q2);
     auto beyond = [](const Form& q, const B& det) {
       const double t = q[0] + q[3] + q[5];
